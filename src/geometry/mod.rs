@@ -1,0 +1,14 @@
+//! Geometry shared by every stage: rigid poses, Euler angles, and the detector's pixel frame.
+//!
+//! Conventions (DESIGN.md, "Units and frames"): lengths in millimetres, angles in degrees at every
+//! boundary a person sees, radians only inside. A [`Pose`] maps local to world coordinates as
+//! `world = rotation · local + position`; the columns of `rotation` are the local axes in world
+//! coordinates. All trigonometry goes through the pure-Rust `libm` crate, never the platform's,
+//! so poses are bit-identical on every machine.
+
+mod detector;
+mod pose;
+
+pub use detector::DetectorFrame;
+pub use glam::{DMat3, DVec3};
+pub use pose::{Pose, euler_xyz_deg, rotation_xyz_deg};

@@ -1,0 +1,4 @@
+//! rsasim: a Radio Stereometric Analysis simulator.
+pub mod diagnostic;
+pub mod geometry;
+pub mod phantom;

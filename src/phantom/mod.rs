@@ -1,0 +1,4 @@
+//! Phantoms in their own local frames: bead sets, calibration boxes, meshes with beads.
+pub mod mesh;
+
+pub use mesh::TriMesh;
