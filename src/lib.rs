@@ -1,4 +1,8 @@
 //! rsasim: a Radio Stereometric Analysis simulator.
 pub mod diagnostic;
 pub mod geometry;
+pub mod scenario;
 pub mod phantom;
+pub mod random;
+pub mod expand;
+pub mod trace;

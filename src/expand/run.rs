@@ -1,0 +1,139 @@
+//! The plain records of one concrete run: every pose drawn, in the calibration box frame.
+//! These are what `rsasim expand` prints and what `truth.json` is built from.
+
+use glam::{DMat3, DVec3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{DetectorFrame, Pose};
+use crate::geometry::{mat3_rows_serde, vec3_serde};
+
+/// One run of the protocol: noise level `n`, run `r`, with its drawn geometry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Run {
+    /// `n<level>-r<run>`, e.g. `n2-r07` (both 0-based; the run number has at least two digits).
+    pub id: String,
+    /// Index of the noise level in the protocol, 0-based.
+    pub noise_level_index: u32,
+    /// Mean background noise as a fraction of I_max.
+    pub noise_level: f64,
+    /// Index of the run within its noise level, 0-based.
+    pub run_index: u32,
+    /// The label whose SHA-256 keys this run's geometry stream (see the README, "Seeds").
+    pub geometry_stream: String,
+    /// Pose of the calibration box (the world frame of this file) in the scanner frame.
+    pub box_pose_in_scanner: Pose,
+    /// Sources, in the box frame.
+    pub sources: Vec<SourceState>,
+    /// Detectors, in the box frame.
+    pub detectors: Vec<DetectorState>,
+    /// Phantoms with their beads, in the box frame.
+    pub phantoms: Vec<PhantomState>,
+    /// Image sets of this run.
+    pub exposures: Vec<ExposureState>,
+}
+
+/// A source's drawn position.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SourceState {
+    /// The scenario's id.
+    pub id: String,
+    /// Focus position, mm, box frame.
+    #[serde(with = "vec3_serde")]
+    #[schemars(with = "[f64; 3]")]
+    pub position_mm: DVec3,
+}
+
+/// A detector's drawn pose and its pixel grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorState {
+    /// The scenario's id.
+    pub id: String,
+    /// Id of its source.
+    pub source: String,
+    /// Centre of the active area, mm, box frame.
+    #[serde(with = "vec3_serde")]
+    #[schemars(with = "[f64; 3]")]
+    pub position_mm: DVec3,
+    /// Rotation (rows); columns are the r, c, s axes in the box frame.
+    #[serde(with = "mat3_rows_serde")]
+    #[schemars(with = "[[f64; 3]; 3]")]
+    pub rotation: DMat3,
+    /// `[columns, rows]`.
+    pub pixels: [u32; 2],
+    /// Pixel pitch `[x, y]`, mm.
+    pub pixel_pitch_mm: [f64; 2],
+    /// Bits per pixel; I_max = 2^bpp − 1.
+    pub bpp: u8,
+}
+
+impl DetectorState {
+    /// The detector's pose in the box frame.
+    pub fn pose(&self) -> Pose {
+        Pose { position_mm: self.position_mm, rotation: self.rotation }
+    }
+
+    /// The detector's pixel frame, for projection and tracing.
+    pub fn frame(&self) -> DetectorFrame {
+        DetectorFrame { pose: self.pose(), pixels: self.pixels, pixel_pitch_mm: self.pixel_pitch_mm }
+    }
+
+    /// I_max = 2^bpp − 1.
+    pub fn i_max(&self) -> u16 {
+        ((1u32 << self.bpp) - 1) as u16
+    }
+}
+
+/// A phantom's drawn pose and its beads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PhantomState {
+    /// The scenario's id.
+    pub id: String,
+    /// `beads`, `calibration_box` or `mesh`.
+    pub kind: String,
+    /// Origin of the phantom's local frame, mm, box frame.
+    #[serde(with = "vec3_serde")]
+    #[schemars(with = "[f64; 3]")]
+    pub position_mm: DVec3,
+    /// Rotation (rows); columns are the local axes in the box frame.
+    #[serde(with = "mat3_rows_serde")]
+    #[schemars(with = "[[f64; 3]; 3]")]
+    pub rotation: DMat3,
+    /// The phantom's beads.
+    pub markers: Vec<MarkerState>,
+}
+
+impl PhantomState {
+    /// The phantom's pose in the box frame.
+    pub fn pose(&self) -> Pose {
+        Pose { position_mm: self.position_mm, rotation: self.rotation }
+    }
+}
+
+/// A bead's centre in the box frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerState {
+    /// Id, unique within its phantom.
+    pub id: String,
+    /// Centre, mm, box frame.
+    #[serde(with = "vec3_serde")]
+    #[schemars(with = "[f64; 3]")]
+    pub position_mm: DVec3,
+    /// Diameter, mm.
+    pub diameter_mm: f64,
+}
+
+/// An image set of the run: one image per detector of these phantoms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ExposureState {
+    /// The scenario's id.
+    pub id: String,
+    /// Ids of the phantoms in the beam.
+    pub phantoms: Vec<String>,
+}

@@ -1,0 +1,87 @@
+//! Reading a scenario file: TOML parse errors located by line, column and key path.
+
+use std::path::{Path, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+use super::Scenario;
+use super::validate::validate;
+use crate::diagnostic::{Diagnostic, Locator};
+
+/// A scenario read from disk, with what later stages need to report on it.
+pub struct LoadedScenario {
+    /// The records as the user wrote them (defaults filled in by serde).
+    pub scenario: Scenario,
+    /// The file it came from.
+    pub path: PathBuf,
+    /// The folder relative paths in the scenario (mesh files) are resolved against.
+    pub base_dir: PathBuf,
+    /// SHA-256 of the file's bytes, lowercase hex.
+    pub sha256: String,
+    /// Key path → line/column index of the file, for diagnostics of later stages.
+    pub locator: Locator,
+    /// Warnings found so far (errors stop loading).
+    pub warnings: Vec<Diagnostic>,
+}
+
+/// Reads, parses and validates a scenario file. On failure every error found is returned
+/// (a parse error stops at the first; semantic checks report them all).
+pub fn load(path: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
+    let bytes = std::fs::read(path).map_err(|e| {
+        vec![Diagnostic::file_error(path, format!("cannot read the scenario file: {e}"))
+            .with_help("give the path of a scenario .toml file, e.g. scenarios/biplanar.toml")]
+    })?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        vec![Diagnostic::file_error(path, format!("the file is not UTF-8 text (byte {})", e.utf8_error().valid_up_to()))
+            .with_help("scenario files are TOML, which must be UTF-8")]
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    from_text(&text, path, &base_dir)
+}
+
+/// Parses and validates scenario text. `path` names it in diagnostics; mesh paths resolve
+/// against `base_dir`. Used by [`load`] and by tests that build scenarios in memory.
+pub fn from_text(text: &str, path: &Path, base_dir: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
+    let locator = Locator::new(path, text);
+    let scenario: Scenario = toml::from_str(text).map_err(|e| {
+        let message = e.message().trim_end().to_string();
+        let mut d = locator.error_at_span(e.span(), message.clone());
+        if let Some(help) = parse_help(&message) {
+            d = d.with_help(help);
+        }
+        vec![d]
+    })?;
+    let diagnostics = validate(&scenario, &locator);
+    let (errors, warnings): (Vec<_>, Vec<_>) = diagnostics.into_iter().partition(Diagnostic::is_error);
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    Ok(LoadedScenario {
+        scenario,
+        path: path.to_path_buf(),
+        base_dir: base_dir.to_path_buf(),
+        sha256: hex(&Sha256::digest(text.as_bytes())),
+        locator,
+        warnings,
+    })
+}
+
+/// Lowercase hex of bytes (sha2 0.11 digests do not implement `LowerHex`).
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A hint for the common parse errors.
+fn parse_help(message: &str) -> Option<String> {
+    if message.contains("unknown field") {
+        Some("remove or rename the key; the valid keys are listed above and in schemas/scenario.schema.json".into())
+    } else if message.contains("missing field") {
+        Some("add the key; see the README's scenario walk-through for what it means".into())
+    } else if message.contains("invalid type") {
+        Some("check the value's type: numbers without quotes, ids and paths in quotes, vectors as [x, y, z]".into())
+    } else if message.contains("unknown variant") {
+        Some("use one of the values listed above".into())
+    } else {
+        None
+    }
+}

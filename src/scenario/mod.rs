@@ -1,0 +1,65 @@
+//! The scenario stage: the TOML file the user wrote, read into plain records and checked.
+//!
+//! Nothing here knows about rays or pixels: this stage turns text into [`Scenario`] records and
+//! [`Diagnostic`](crate::diagnostic::Diagnostic)s. Checks that need the mesh files or the
+//! geometry of every run happen in the later stages, which report through the same locator.
+
+mod load;
+mod model;
+mod validate;
+
+pub use load::{LoadedScenario, from_text, hex, load};
+pub use model::*;
+
+/// JSON Schema of the scenario file (draft 2020-12), generated from the records above.
+pub fn json_schema() -> serde_json::Value {
+    let schema = schemars::schema_for!(Scenario);
+    schema.as_value().clone()
+}
+
+impl Detector {
+    /// Pixel pitch `[x, y]` in mm, from `pixel_pitch_mm` or `size_mm / pixels`.
+    pub fn resolved_pixel_pitch_mm(&self) -> [f64; 2] {
+        match (self.pixel_pitch_mm, self.size_mm) {
+            (Some(p), _) => p,
+            (None, Some(s)) => [s[0] / self.pixels[0] as f64, s[1] / self.pixels[1] as f64],
+            (None, None) => [f64::NAN; 2],
+        }
+    }
+
+    /// I_max = 2^bpp − 1, the value of a covered pixel.
+    pub fn i_max(&self) -> u16 {
+        ((1u32 << self.bpp) - 1) as u16
+    }
+}
+
+/// The shape of a phantom, once validation has ensured exactly one is given.
+pub enum PhantomShape<'a> {
+    /// A free bead set.
+    Beads(&'a [Bead]),
+    /// A calibration box.
+    CalibrationBox(&'a CalibrationBox),
+    /// A mesh with optional beads.
+    Mesh(&'a MeshPhantom),
+}
+
+impl Phantom {
+    /// The phantom's shape. Validation guarantees exactly one of the three keys is set.
+    pub fn shape(&self) -> PhantomShape<'_> {
+        match (&self.beads, &self.calibration_box, &self.mesh) {
+            (Some(b), None, None) => PhantomShape::Beads(b),
+            (None, Some(c), None) => PhantomShape::CalibrationBox(c),
+            (None, None, Some(m)) => PhantomShape::Mesh(m),
+            _ => panic!("phantom `{}` was not validated: it needs exactly one shape", self.id),
+        }
+    }
+
+    /// The kind as written in truth files: `beads`, `calibration_box` or `mesh`.
+    pub fn kind(&self) -> &'static str {
+        match self.shape() {
+            PhantomShape::Beads(_) => "beads",
+            PhantomShape::CalibrationBox(_) => "calibration_box",
+            PhantomShape::Mesh(_) => "mesh",
+        }
+    }
+}

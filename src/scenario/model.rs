@@ -1,0 +1,318 @@
+//! The scenario as the user writes it: plain serde records, one per TOML table.
+//!
+//! Every field's doc comment becomes its description in `schemas/scenario.schema.json`, which
+//! editors with Taplo / Even Better TOML use to complete and check keys. Every default is stated
+//! in the doc comment and in the README. Coordinates are in the scanner (lab) frame, mm; angles
+//! are X-Y-Z Euler angles in degrees (`R = Rx(α)·Ry(β)·Rz(γ)`, the paper's decomposition).
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// A whole simulation: the radiological set-up, the phantoms, the protocol and the outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name of the scenario (letters, digits, `-`, `_`, `.`); the default output folder is
+    /// `out/<name>`.
+    pub name: String,
+    /// Free text describing the scenario; copied into reports.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    /// Master seed of every random draw (geometry and noise). The same scenario, seed and
+    /// program version give byte-identical outputs. Default 0.
+    #[serde(default)]
+    pub seed: u64,
+    /// Noise levels and runs per level. Default: the paper's 5 levels × 20 runs.
+    #[serde(default)]
+    pub protocol: Protocol,
+    /// Image formats and compression. Default: 16-bit TIFF (Deflate) and 32-bit float EXR.
+    #[serde(default)]
+    pub output: OutputOptions,
+    /// Point X-ray sources (tube foci).
+    pub sources: Vec<Source>,
+    /// Flat detectors; each pairs with one source to form a beamline.
+    pub detectors: Vec<Detector>,
+    /// Objects in the beam: bead sets, calibration boxes, meshes.
+    pub phantoms: Vec<Phantom>,
+    /// Image sets: which phantoms appear together in one image per detector.
+    pub exposures: Vec<Exposure>,
+}
+
+/// The validation protocol: a set of noise levels, each simulated `runs_per_level` times with
+/// fresh random poses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Protocol {
+    /// Mean background noise as fractions of I_max = 2^bpp − 1, each in [0, 1].
+    /// Default `[0.0, 0.225, 0.45, 0.675, 0.9]` (the paper's 0 % to 90 % in steps of 22.5 %).
+    #[serde(default = "Protocol::paper_noise_levels")]
+    pub noise_levels: Vec<f64>,
+    /// Runs per noise level, at least 1. Default 20 (the paper).
+    #[serde(default = "Protocol::paper_runs_per_level")]
+    pub runs_per_level: u32,
+}
+
+impl Protocol {
+    fn paper_noise_levels() -> Vec<f64> {
+        vec![0.0, 0.225, 0.45, 0.675, 0.9]
+    }
+
+    fn paper_runs_per_level() -> u32 {
+        20
+    }
+}
+
+impl Default for Protocol {
+    fn default() -> Self {
+        Protocol { noise_levels: Self::paper_noise_levels(), runs_per_level: Self::paper_runs_per_level() }
+    }
+}
+
+/// An image file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageFormat {
+    /// 16-bit grayscale TIFF (`.tiff`), detector counts 0..=I_max.
+    Tiff,
+    /// OpenEXR (`.exr`), one 32-bit float channel `Y` with the same counts.
+    Exr,
+}
+
+impl ImageFormat {
+    /// The file extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Tiff => "tiff",
+            ImageFormat::Exr => "exr",
+        }
+    }
+}
+
+/// Compression of the TIFF files.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TiffCompression {
+    /// No compression: fastest, largest.
+    None,
+    /// LZW with the horizontal predictor.
+    Lzw,
+    /// Deflate (zlib) with the horizontal predictor: small files, read by every TIFF reader.
+    #[default]
+    Deflate,
+    /// PackBits run-length coding.
+    Packbits,
+}
+
+/// What files a run writes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OutputOptions {
+    /// Image formats to write for every exposure and detector. Default `["tiff", "exr"]`.
+    #[serde(default = "OutputOptions::default_formats")]
+    pub formats: Vec<ImageFormat>,
+    /// TIFF compression. Default `"deflate"`.
+    #[serde(default)]
+    pub tiff_compression: TiffCompression,
+}
+
+impl OutputOptions {
+    fn default_formats() -> Vec<ImageFormat> {
+        vec![ImageFormat::Tiff, ImageFormat::Exr]
+    }
+}
+
+impl Default for OutputOptions {
+    fn default() -> Self {
+        OutputOptions { formats: Self::default_formats(), tiff_compression: TiffCompression::default() }
+    }
+}
+
+/// ± half-widths of the uniform random draw applied to a position each run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PositionRange {
+    /// Each run adds a uniform draw in [−r, +r] mm along each scanner axis x, y, z.
+    /// Default `[0, 0, 0]` (no randomisation).
+    #[serde(default)]
+    pub position_mm: [f64; 3],
+}
+
+/// ± half-widths of the uniform random draws applied to a pose each run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PoseRange {
+    /// Each run adds a uniform draw in [−r, +r] mm along each scanner axis x, y, z.
+    /// Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub position_mm: [f64; 3],
+    /// Each run turns the object by X-Y-Z Euler angles drawn uniformly in [−r, +r] degrees about
+    /// its own (nominal) local axes: `R = R_nominal · Rx(δα)·Ry(δβ)·Rz(δγ)`. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+}
+
+/// A point X-ray source (the tube focus), ideal and monochromatic as in the paper.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Source {
+    /// Unique id (letters, digits, `-`, `_`, `.`), used in file names and reports.
+    pub id: String,
+    /// Nominal focus position in the scanner frame, mm.
+    pub position_mm: [f64; 3],
+    /// Random displacement per run. Default: none.
+    #[serde(default)]
+    pub randomize: PositionRange,
+}
+
+/// A flat detector. Its local frame: x = r along a row (increasing column), y = c along a column
+/// (increasing row), z = s the normal towards its source; origin at the centre of the active area.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Detector {
+    /// Unique id (letters, digits, `-`, `_`, `.`), used in file names and reports.
+    pub id: String,
+    /// Id of the source this detector pairs with (one beamline).
+    pub source: String,
+    /// Pixel counts `[columns, rows]`, each 1..=65535.
+    pub pixels: [u32; 2],
+    /// Active area `[width, height]` in mm. Give exactly one of `size_mm` and `pixel_pitch_mm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size_mm: Option<[f64; 2]>,
+    /// Pixel pitch `[x, y]` in mm. Give exactly one of `size_mm` and `pixel_pitch_mm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixel_pitch_mm: Option<[f64; 2]>,
+    /// Bits per pixel, 1..=16; I_max = 2^bpp − 1. Default 16.
+    #[serde(default = "Detector::default_bpp")]
+    pub bpp: u8,
+    /// Nominal position of the centre of the active area in the scanner frame, mm.
+    pub position_mm: [f64; 3],
+    /// Nominal orientation, X-Y-Z Euler angles in degrees; `[0, 0, 0]` puts r, c, s along the
+    /// scanner x, y, z (a detector facing a source on its +z side). Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+    /// Random displacement and tilt per run. Default: none.
+    #[serde(default)]
+    pub randomize: PoseRange,
+}
+
+impl Detector {
+    fn default_bpp() -> u8 {
+        16
+    }
+}
+
+/// A tantalum bead (an exact sphere).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Bead {
+    /// Id, unique within its phantom.
+    pub id: String,
+    /// Centre in the phantom's local frame, mm.
+    pub position_mm: [f64; 3],
+    /// Diameter in mm. Default 1.0 (the usual RSA tantalum bead).
+    #[serde(default = "default_bead_diameter_mm")]
+    pub diameter_mm: f64,
+}
+
+fn default_bead_diameter_mm() -> f64 {
+    1.0
+}
+
+/// The role of a calibration plate, as in Selvik's calibration cages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PlateRole {
+    /// The plate near the detector; its beads define the image plane mapping.
+    Fiducial,
+    /// The plate near the source; its beads fix the focus position.
+    Control,
+}
+
+/// One plate of a calibration box: a rectangular grid of beads in the plate's local x-y plane.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Plate {
+    /// Id, unique within the box; bead ids are `<plate>-<row>-<column>` (two digits each).
+    pub id: String,
+    /// Fiducial (near a detector) or control (near a source).
+    pub role: PlateRole,
+    /// Centre of the grid in the box frame, mm.
+    pub center_mm: [f64; 3],
+    /// Orientation of the plate in the box frame, X-Y-Z Euler angles in degrees; the grid lies in
+    /// the plate's local x-y plane. Default `[0, 0, 0]` (a plate normal to z).
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+    /// Outer size of the (radiolucent) plate `[x, y]` in mm; the bead grid must fit inside it.
+    pub size_mm: [f64; 2],
+    /// Number of beads `[columns along x, rows along y]`, each at least 1.
+    pub grid: [u32; 2],
+    /// Bead spacing `[x, y]` in mm.
+    pub spacing_mm: [f64; 2],
+    /// Bead diameter in mm. Default 1.0.
+    #[serde(default = "default_bead_diameter_mm")]
+    pub bead_diameter_mm: f64,
+    /// Grid positions `[column, row]` left empty, as real cages do to mark their orientation.
+    /// Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub omit: Vec<[u32; 2]>,
+}
+
+/// A calibration box (cage) built like real RSA cages: plates of bead grids.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationBox {
+    /// The plates, at least one.
+    pub plates: Vec<Plate>,
+}
+
+/// A closed triangle mesh loaded from a file, optionally carrying beads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeshPhantom {
+    /// Path of a `.glb`, `.gltf` or `.stl` file, relative to the scenario file.
+    pub file: String,
+    /// Millimetres per file unit. Default 1000 for glTF (the glTF spec's metre) and 1 for STL
+    /// (customary millimetres).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unit_mm: Option<f64>,
+    /// Beads fixed to the mesh, in the mesh's local frame (mm, after `unit_mm`). Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub beads: Vec<Bead>,
+}
+
+/// An object in the beam. Give exactly one of `beads`, `calibration_box` or `mesh`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Phantom {
+    /// Unique id (letters, digits, `-`, `_`, `.`), used in file names and reports.
+    pub id: String,
+    /// Nominal position of the phantom's local origin in the scanner frame, mm. Default origin.
+    #[serde(default)]
+    pub position_mm: [f64; 3],
+    /// Nominal orientation, X-Y-Z Euler angles in degrees. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+    /// Random displacement and rotation per run. Default: none.
+    #[serde(default)]
+    pub randomize: PoseRange,
+    /// A free set of beads.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beads: Option<Vec<Bead>>,
+    /// A calibration box. The first calibration box defines the world (box) frame in which all
+    /// ground truth is written.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration_box: Option<CalibrationBox>,
+    /// A mesh (a prosthesis or bone model), optionally with beads.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshPhantom>,
+}
+
+/// One image set: every detector takes one image of these phantoms together.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Exposure {
+    /// Unique id (letters, digits, `-`, `_`, `.`); images are `<exposure>-<detector>.<ext>`.
+    pub id: String,
+    /// Ids of the phantoms in the beam, at least one.
+    pub phantoms: Vec<String>,
+}
