@@ -6,3 +6,5 @@ pub mod phantom;
 pub mod random;
 pub mod expand;
 pub mod trace;
+pub mod output;
+pub mod simulate;

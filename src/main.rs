@@ -1,1 +1,106 @@
-fn main(){}
+//! The `rsasim` command: parse the arguments, call the library, map failures to exit codes
+//! (2: bad input, nothing written; 1: a failure while writing).
+
+mod cli;
+
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+use rsasim::diagnostic::Diagnostic;
+use rsasim::simulate::{self, Plan};
+
+use cli::{Cli, Command};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Validate { scenario }) => prepare(&scenario).map(|plan| {
+            eprintln!(
+                "{}: valid ({} runs, {} images per format)",
+                scenario.display(),
+                plan.runs.len(),
+                plan.image_count()
+            );
+        }),
+        Some(Command::Expand { scenario }) => prepare(&scenario).map(|plan| {
+            println!("{}", serde_json::to_string_pretty(&plan.runs).expect("runs serialise"));
+        }),
+        Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
+        None => {
+            let scenario = cli.run.scenario.expect("clap requires a scenario");
+            prepare(&scenario).and_then(|plan| run(&plan, cli.run.out, cli.run.force))
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(code) => ExitCode::from(code),
+    }
+}
+
+/// Loads and checks a scenario, printing warnings; errors are printed and give exit code 2.
+fn prepare(path: &std::path::Path) -> Result<Plan, u8> {
+    match simulate::prepare(path) {
+        Ok(plan) => {
+            plan.warnings.iter().for_each(|w| eprintln!("{w}"));
+            Ok(plan)
+        }
+        Err(errors) => Err(report(&errors)),
+    }
+}
+
+fn report(errors: &[Diagnostic]) -> u8 {
+    errors.iter().for_each(|e| eprintln!("{e}\n"));
+    eprintln!("rsasim: {} error(s); nothing was written", errors.len());
+    2
+}
+
+fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), u8> {
+    let out = out.unwrap_or_else(|| std::path::Path::new("out").join(&plan.loaded.scenario.name));
+    if out.exists() && !force {
+        eprintln!("error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere", out.display());
+        return Err(2);
+    }
+    let bar = ProgressBar::new(plan.image_count() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} {bar:40} {pos}/{len} images ({eta} left)").expect("valid template"),
+    );
+    let start = Instant::now();
+    let summary = simulate::simulate(plan, &out, force, &|| bar.inc(1)).map_err(|e| {
+        bar.abandon();
+        eprintln!("error: writing {} failed: {e}", out.display());
+        1
+    })?;
+    bar.finish_and_clear();
+    eprintln!(
+        "rsasim: {} runs, {} image files in {:.1} s -> {}",
+        summary.runs,
+        summary.image_files,
+        start.elapsed().as_secs_f64(),
+        summary.out_dir.display()
+    );
+    Ok(())
+}
+
+fn schema(name: &str, write_dir: Option<&std::path::Path>) -> Result<(), u8> {
+    let schemas = rsasim::output::schemas();
+    match write_dir {
+        Some(dir) => {
+            for (n, s) in &schemas {
+                let path = dir.join(format!("{n}.schema.json"));
+                let text = serde_json::to_string_pretty(s).expect("schema serialises") + "\n";
+                rsasim::output::atomic::write_atomic(&path, text.as_bytes()).map_err(|e| {
+                    eprintln!("error: cannot write {}: {e}", path.display());
+                    1
+                })?;
+                eprintln!("wrote {}", path.display());
+            }
+        }
+        None => {
+            let (_, s) = schemas.iter().find(|(n, _)| *n == name).expect("clap restricts the names");
+            println!("{}", serde_json::to_string_pretty(s).expect("schema serialises"));
+        }
+    }
+    Ok(())
+}

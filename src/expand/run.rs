@@ -9,8 +9,10 @@ use crate::geometry::{DetectorFrame, Pose};
 use crate::geometry::{mat3_rows_serde, vec3_serde};
 
 /// One run of the protocol: noise level `n`, run `r`, with its drawn geometry.
+///
+/// `truth.json` flattens these fields into its top level, so this record does not reject
+/// unknown keys itself; `Truth` does.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
 pub struct Run {
     /// `n<level>-r<run>`, e.g. `n2-r07` (both 0-based; the run number has at least two digits).
     pub id: String,

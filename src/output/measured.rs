@@ -1,0 +1,56 @@
+//! `measured.json`: what a software under test reconstructed for one run. It mirrors the ids
+//! and fields of `truth.json`; everything a software does not measure is simply left out.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// The format tag of measured files.
+pub const MEASURED_FORMAT: &str = "rsasim-measured/1";
+
+/// One run's reconstruction by a software under test, in the calibration box frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Measured {
+    /// Always `rsasim-measured/1`.
+    pub format: String,
+    /// Run id, as in `truth.json`.
+    pub run: String,
+    /// Name and version of the software that measured, e.g. `"rsasim reconstruct 0.1.0"`.
+    pub software: String,
+    /// Reconstructed source (focus) positions.
+    #[serde(default)]
+    pub sources: Vec<MeasuredPoint>,
+    /// Reconstructed detector poses.
+    #[serde(default)]
+    pub detectors: Vec<MeasuredPose>,
+    /// Reconstructed phantom poses.
+    #[serde(default)]
+    pub phantoms: Vec<MeasuredPose>,
+}
+
+/// A reconstructed position.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredPoint {
+    /// Id, as in `truth.json`.
+    pub id: String,
+    /// Position, mm, box frame.
+    pub position_mm: [f64; 3],
+}
+
+/// A reconstructed pose; `rotation` (three rows, columns = local axes in the box frame) may be
+/// left out by software that measures positions only.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredPose {
+    /// Id, as in `truth.json`.
+    pub id: String,
+    /// Position of the local origin, mm, box frame.
+    pub position_mm: [f64; 3],
+    /// Rotation matrix rows, if measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<[[f64; 3]; 3]>,
+    /// Reconstructed bead centres, if measured.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub markers: Vec<MeasuredPoint>,
+}
