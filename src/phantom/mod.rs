@@ -1,4 +1,5 @@
 //! Phantoms in their own local frames: bead sets, calibration boxes, meshes with beads.
 pub mod mesh;
+pub mod mesh_io;
 
 pub use mesh::TriMesh;
