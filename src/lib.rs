@@ -6,5 +6,6 @@ pub mod phantom;
 pub mod random;
 pub mod expand;
 pub mod trace;
+pub mod noise;
 pub mod output;
 pub mod simulate;

@@ -236,7 +236,7 @@ fn encode_image(s: &Scenario, run: &Run, exposure: &str, det: &expand::DetectorS
                 "rsasim scenario={} run={} noise_level={} exposure={exposure} detector={} pixel_pitch_mm={}x{} bpp={}",
                 s.name, run.id, run.noise_level, det.id, det.pixel_pitch_mm[0], det.pixel_pitch_mm[1], det.bpp
             );
-            encode_tiff(w, h, pixels, s.output.tiff_compression.into(), &description, &output::program())
+            encode_tiff(w, h, pixels, s.output.tiff_compression, &description, &output::program())
                 .expect("in-memory TIFF encoding of a valid image")
         }
         ImageFormat::Exr => {

@@ -2,8 +2,10 @@
 //! user has, and the schemas of the JSON files (DESIGN.md, "Output layout").
 
 pub mod atomic;
+pub mod exr;
 pub mod manifest;
 pub mod measured;
+pub mod tiff;
 pub mod truth;
 
 pub use manifest::{MANIFEST_FORMAT, Manifest, ManifestFile};

@@ -96,7 +96,8 @@ pub enum TiffCompression {
     None,
     /// LZW with the horizontal predictor.
     Lzw,
-    /// Deflate (zlib) with the horizontal predictor: small files, read by every TIFF reader.
+    /// Deflate (zlib, fast level) with the horizontal predictor: small files, read by every TIFF
+    /// reader.
     #[default]
     Deflate,
     /// PackBits run-length coding.

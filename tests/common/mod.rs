@@ -1,0 +1,58 @@
+//! Helpers shared by the whole-program tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs the `rsasim` binary with `args` in the repository root, with extra environment.
+pub fn rsasim(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_rsasim"));
+    cmd.args(args).current_dir(root());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("rsasim runs")
+}
+
+/// Runs a scenario into `out` and panics with its stderr on failure.
+pub fn run_scenario(scenario: &str, out: &Path, env: &[(&str, &str)]) {
+    let o = rsasim(&[scenario, "--out", out.to_str().unwrap()], env);
+    assert!(o.status.success(), "rsasim {scenario} failed:\n{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// Every file under `dir` as (relative path with `/`, SHA-256), sorted.
+pub fn hashes(dir: &Path) -> Vec<(String, String)> {
+    use sha2::{Digest, Sha256};
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p.strip_prefix(dir).unwrap().components().map(|c| c.as_os_str().to_string_lossy().into_owned());
+                let rel = rel.collect::<Vec<_>>().join("/");
+                let sha = Sha256::digest(std::fs::read(&p).unwrap());
+                out.push((rel, sha.iter().map(|b| format!("{b:02x}")).collect()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Decodes a 16-bit TIFF into (width, height, pixels).
+pub fn read_tiff(path: &Path) -> (u32, u32, Vec<u16>) {
+    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap())).unwrap();
+    let (w, h) = dec.dimensions().unwrap();
+    match dec.read_image().unwrap() {
+        tiff::decoder::DecodingResult::U16(v) => (w, h, v),
+        _ => panic!("{} is not 16-bit", path.display()),
+    }
+}
