@@ -197,4 +197,8 @@ fn the_shipped_model_matches_the_code() {
         "{} is out of date: run `cargo run --release --example femoral_component -- scenarios/models/femoral_component.glb`",
         path.display()
     );
+    // And it loads back (glTF metres → mm) as the same closed surface.
+    let loaded = crate::phantom::mesh_io::load_mesh(&path, 1000.0).unwrap();
+    loaded.check_closed().unwrap();
+    assert_eq!(loaded.triangles, component().mesh.triangles);
 }
