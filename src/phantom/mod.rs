@@ -5,6 +5,8 @@
 //! the scenario key that named them.
 
 pub mod calibration_box;
+pub mod femoral;
+pub mod isosurface;
 pub mod mesh;
 pub mod mesh_io;
 

@@ -1,0 +1,207 @@
+//! A generic total-knee femoral component with tantalum RSA beads, generated from code.
+//!
+//! # Shape
+//! Two condyles with a J-curved sagittal profile (posterior arc 19 mm, distal arc 38 mm, anterior
+//! arc 20 mm; see [`profile`]), an anterior flange that narrows proximally and carries a shallow
+//! patellar groove, an intercondylar notch (19 mm wide, U-shaped at its anterior end) between the
+//! posterior condyles (each domed with a 35 mm coronal radius), and on the bone side the usual five box cuts (anterior, anterior chamfer,
+//! distal, posterior chamfer, posterior) with 7.5–9 mm of metal under them. Outer edges are
+//! rounded (3 mm at the medio-lateral sides). The design is symmetric medio-laterally, so it
+//! serves as a left or a right component. Overall about 68 mm medio-lateral, 59 mm
+//! antero-posterior and 54 mm proximal-distal.
+//!
+//! The solid is an implicit function (a constructive-solid-geometry combination of the extruded
+//! sagittal profile, the side faces, the caps and the notch, with rounded intersections) and its
+//! surface comes from [`marching_tetrahedra`] on a [`GRID_STEP_MM`] grid: closed, 2-manifold,
+//! outward-wound and free of self-intersections by construction. Only `sqrt`, arithmetic and
+//! `libm` are used, and nothing random, so the mesh is the same bytes on every platform.
+//!
+//! # Local frame
+//! Millimetres. The origin is the centre of the mesh's axis-aligned bounding box; **x** is
+//! medio-lateral, **y** points proximally along the femoral axis (up, away from the joint), and
+//! **z** points anteriorly. (x, y, z) is right-handed; with x pointing to the patient's left the
+//! frame suits a right knee, with x to the right a left knee.
+//!
+//! # Beads
+//! Six 1.0 mm tantalum beads lie on the bone side, 3 mm behind the anterior, distal, anterior
+//! chamfer and posterior cuts (as if on short pegs in the cement mantle), so each bead's surface
+//! is 2.5 mm clear of the metal and shows as a separate blob on a radiograph. They are spread
+//! over the component in all three directions.
+
+pub mod profile;
+
+use glam::DVec3;
+
+use super::TriMesh;
+use super::isosurface::{Grid, marching_tetrahedra, sample};
+use profile::{BoneBox, Polygon};
+
+/// Grid spacing of the marching tetrahedra along x (medio-lateral) and in the sagittal y–z plane,
+/// mm. The shape is mostly an extrusion along x, so x can be sampled more coarsely.
+pub const GRID_STEP_MM: [f64; 2] = [2.0, 0.9];
+/// Half the medio-lateral width at the condyles, mm.
+const HALF_WIDTH: f64 = 34.0;
+/// The flange narrows by this many mm of half-width per mm above [`TAPER_START_Y`].
+const FLANGE_TAPER: f64 = 0.35;
+/// Height (design frame, mm above the lowest point) where the flange starts to narrow.
+const TAPER_START_Y: f64 = 22.0;
+/// Top of the anterior flange, mm above the lowest point.
+const Y_TOP_ANT: f64 = 54.0;
+/// Top of the posterior condyles, mm above the lowest point.
+const Y_TOP_POST: f64 = 40.0;
+/// Rounding radii, mm: medio-lateral side edges, top caps, bone-side edges, notch edges.
+const R_SIDE: f64 = 3.0;
+const R_CAP: f64 = 1.5;
+const R_INNER: f64 = 1.0;
+const R_NOTCH_EDGE: f64 = 1.5;
+/// Intercondylar notch half-width, and the z of its anterior end (design frame), mm.
+const NOTCH_HALF_WIDTH: f64 = 9.5;
+const NOTCH_END_Z: f64 = 2.0;
+/// Coronal radius of the condyles' articular surface, mm.
+const R_CORONAL: f64 = 35.0;
+/// Patellar groove depth and half-width, mm.
+const GROOVE_DEPTH: f64 = 2.5;
+const GROOVE_HALF_WIDTH: f64 = 16.0;
+/// Bead diameter and depth of bead centres behind their bone cut, mm.
+const BEAD_DIAMETER: f64 = 1.0;
+const BEAD_DEPTH: f64 = 3.0;
+
+/// A tantalum marker bead fixed to the component, in the component's local frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FemoralBead {
+    /// Marker id, "K1", "K2", …
+    pub id: String,
+    /// Centre, mm, local frame.
+    pub position_mm: [f64; 3],
+    /// Diameter, mm.
+    pub diameter_mm: f64,
+}
+
+/// The femoral component: its closed surface mesh and its beads, both in the local frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FemoralComponent {
+    /// Closed, outward-wound surface, mm.
+    pub mesh: TriMesh,
+    /// Marker beads outside the metal.
+    pub beads: Vec<FemoralBead>,
+}
+
+/// Builds the femoral component (see the module documentation for shape, frame and beads).
+/// Deterministic: every call returns the same mesh and beads.
+pub fn femoral_component() -> FemoralComponent {
+    let outer = profile::outer_contour();
+    let bone = BoneBox::new(&outer);
+    let (grid, values) = sample_solid(&outer, &bone);
+    // The grid encloses the solid with a margin, so the surface always closes.
+    let surface = marching_tetrahedra(&grid, &values).unwrap_or_else(|e| panic!("femoral component grid: {e}"));
+
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for v in &surface.vertices {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    let centre = (lo + hi) * 0.5;
+    let vertices = surface.vertices.iter().map(|v| (*v - centre).as_vec3().to_array()).collect();
+    let beads = bead_centres(&outer)
+        .iter()
+        .enumerate()
+        .map(|(i, p)| FemoralBead {
+            id: format!("K{}", i + 1),
+            position_mm: (*p - centre).to_array().map(|c| (c * 1000.0).round() / 1000.0),
+            diameter_mm: BEAD_DIAMETER,
+        })
+        .collect();
+    FemoralComponent { mesh: TriMesh { vertices, triangles: surface.triangles }, beads }
+}
+
+/// The sampling grid (design frame: lowest point at y = 0) and the implicit function at its nodes.
+fn sample_solid(outer: &Polygon, bone: &BoneBox) -> (Grid, Vec<f64>) {
+    let h = DVec3::new(GRID_STEP_MM[0], GRID_STEP_MM[1], GRID_STEP_MM[1]);
+    let z_min = -outer.support([-1.0, 0.0]);
+    let z_max = outer.support([1.0, 0.0]);
+    // A fractional offset keeps nodes off the flat faces (no systematic zero values).
+    let origin = DVec3::new(-HALF_WIDTH, 0.0, z_min) - DVec3::new(2.0 - 0.13, 2.0 - 0.29, 2.0 - 0.41) * h;
+    let count = |extent: f64, h: f64| (extent / h).ceil() as usize + 5;
+    let n = [count(2.0 * HALF_WIDTH, h.x), count(Y_TOP_ANT, h.y), count(z_max - z_min, h.z)];
+    let grid = Grid { origin, step: h, n };
+    // The sagittal distances do not depend on x: tabulate them once per (y, z) node.
+    let (ny, nz) = (grid.n[1], grid.n[2]);
+    let mut tables = Vec::with_capacity(ny * nz);
+    for k in 0..nz {
+        for j in 0..ny {
+            let p = grid.node(0, j, k);
+            tables.push((outer.sdf([p.z, p.y]), bone.sdf([p.z, p.y])));
+        }
+    }
+    let mut node = 0usize;
+    let values = sample(&grid, |p| {
+        let (j, k) = ((node / grid.n[0]) % ny, node / (grid.n[0] * ny));
+        node += 1;
+        let (s_outer, s_bone) = tables[j + ny * k];
+        solid(p, s_outer, s_bone)
+    });
+    (grid, values)
+}
+
+/// Rounded intersection of two solids given by distances `a`, `b` (negative inside): convex
+/// edges are rounded with radius `r`.
+fn round_intersection(a: f64, b: f64, r: f64) -> f64 {
+    let (u, v) = ((r + a).max(0.0), (r + b).max(0.0));
+    (-r).min(a.max(b)) + (u * u + v * v).sqrt()
+}
+
+/// Cubic smooth step from 0 at `e0` to 1 at `e1`.
+fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
+    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// The implicit function of the component (design frame, negative in the metal), given the
+/// sagittal distances to the outer J-contour and to the bone box at (y, z).
+fn solid(p: DVec3, s_outer: f64, s_bone: f64) -> f64 {
+    // Anterior (trochlear) part: patellar groove; posterior part: condyles domed in the coronal plane.
+    let anterior = smoothstep(NOTCH_END_Z - 6.0, NOTCH_END_Z + 4.0, p.z);
+    let groove = if p.x.abs() < GROOVE_HALF_WIDTH {
+        let q = 1.0 - (p.x / GROOVE_HALF_WIDTH).powi(2);
+        GROOVE_DEPTH * q * q * anterior
+    } else {
+        0.0
+    };
+    let condyle_centre = 0.5 * (NOTCH_HALF_WIDTH + HALF_WIDTH);
+    let u = p.x.abs().clamp(NOTCH_HALF_WIDTH, HALF_WIDTH) - condyle_centre;
+    let dome = u * u / (2.0 * R_CORONAL) * (1.0 - anterior);
+    let half_width = HALF_WIDTH - FLANGE_TAPER * (p.y - TAPER_START_Y).max(0.0) * smoothstep(-5.0, 5.0, p.z);
+    let sides = p.x.abs() - half_width;
+    let cap = p.y - if p.z > 0.0 { Y_TOP_ANT } else { Y_TOP_POST };
+    let outer = round_intersection(s_outer + groove + dome, sides, R_SIDE);
+    let outer = round_intersection(outer, cap, R_CAP);
+    let metal = round_intersection(outer, -s_bone, R_INNER);
+    let notch = round_intersection(p.x.abs() - NOTCH_HALF_WIDTH, p.z - NOTCH_END_Z, NOTCH_HALF_WIDTH);
+    round_intersection(metal, -notch, R_NOTCH_EDGE)
+}
+
+/// Bead centres in the design frame: `BEAD_DEPTH` behind a bone cut, at (x, cut, y or z).
+fn bead_centres(outer: &Polygon) -> Vec<DVec3> {
+    let cuts = profile::cut_planes(outer);
+    // (x, cut index, given coordinate): cuts 0, 1, 3, 4 are placed by height y, cut 2 (distal) by z.
+    let placements: [(f64, usize, f64); 6] = [
+        (22.0, 4, 30.0),  // posterior cut, one condyle
+        (-20.0, 4, 22.0), // posterior cut, the other condyle
+        (12.0, 0, 44.0),  // anterior flange, high
+        (-15.0, 0, 30.0), // anterior flange, low
+        (-24.0, 2, -4.0), // distal cut
+        (26.0, 1, 13.5),  // anterior chamfer
+    ];
+    placements
+        .iter()
+        .map(|&(x, cut, given)| {
+            let (n, c) = cuts[cut];
+            let (z, y) = if cut == 2 { (given, (c - n[0] * given) / n[1]) } else { ((c - n[1] * given) / n[0], given) };
+            DVec3::new(x, y - BEAD_DEPTH * n[1], z - BEAD_DEPTH * n[0])
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,204 @@
+//! Tests of the femoral component: closedness, size, beads, determinism, the shipped model.
+
+use std::sync::OnceLock;
+
+use glam::DVec3;
+
+use super::*;
+
+/// The component, built once for all tests.
+fn component() -> &'static FemoralComponent {
+    static C: OnceLock<FemoralComponent> = OnceLock::new();
+    C.get_or_init(femoral_component)
+}
+
+fn vertex(m: &TriMesh, i: u32) -> DVec3 {
+    DVec3::from_array(m.vertices[i as usize].map(f64::from))
+}
+
+/// Distance from `p` to triangle `abc` (closest point by Voronoi regions, Ericson §5.1.5).
+fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return (p - (a + ab * (d1 / (d1 - d3)))).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return (p - (a + ac * (d2 / (d2 - d6)))).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    (p - (a + ab * (vb * denom) + ac * (vc * denom))).length()
+}
+
+/// Number of triangles a ray from `origin` along `dir` crosses (Möller–Trumbore, f64).
+fn crossings(m: &TriMesh, origin: DVec3, dir: DVec3) -> usize {
+    m.triangles
+        .iter()
+        .filter(|t| {
+            let [a, b, c] = t.map(|i| vertex(m, i));
+            let (e1, e2) = (b - a, c - a);
+            let pv = dir.cross(e2);
+            let det = e1.dot(pv);
+            if det.abs() < 1e-12 {
+                return false;
+            }
+            let tv = origin - a;
+            let u = tv.dot(pv) / det;
+            let qv = tv.cross(e1);
+            let v = dir.dot(qv) / det;
+            let t = e2.dot(qv) / det;
+            (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && t > 0.0
+        })
+        .count()
+}
+
+/// Eigenvalues of a symmetric 3×3 matrix by cyclic Jacobi rotations, ascending.
+fn symmetric_eigenvalues(mut a: [[f64; 3]; 3]) -> [f64; 3] {
+    for _ in 0..50 {
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q].abs() < 1e-15 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = c * akp - s * akq;
+                row[q] = s * akp + c * akq;
+            }
+            let (rp, rq) = (a[p], a[q]);
+            a[p] = std::array::from_fn(|k| c * rp[k] - s * rq[k]);
+            a[q] = std::array::from_fn(|k| s * rp[k] + c * rq[k]);
+        }
+    }
+    let mut e = [a[0][0], a[1][1], a[2][2]];
+    e.sort_by(f64::total_cmp);
+    e
+}
+
+#[test]
+fn mesh_is_closed_outward_genus_zero_and_connected() {
+    let m = &component().mesh;
+    m.check_closed().unwrap();
+    let volume = m.signed_volume_mm3();
+    assert!((25_000.0..60_000.0).contains(&volume), "volume {volume} mm³");
+    // Euler characteristic V − E + F = 2 for one closed genus-0 surface (E = 3F/2).
+    let chi = m.vertices.len() as i64 - (3 * m.triangles.len() / 2) as i64 + m.triangles.len() as i64;
+    assert_eq!(chi, 2, "Euler characteristic");
+    // One connected piece (union-find over triangle vertices).
+    let mut parent: Vec<u32> = (0..m.vertices.len() as u32).collect();
+    fn find(p: &mut [u32], mut i: u32) -> u32 {
+        while p[i as usize] != i {
+            p[i as usize] = p[p[i as usize] as usize];
+            i = p[i as usize];
+        }
+        i
+    }
+    for t in &m.triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2])] {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            parent[ra as usize] = rb;
+        }
+    }
+    let roots = (0..m.vertices.len() as u32).filter(|&i| find(&mut parent, i) == i).count();
+    assert_eq!(roots, 1, "connected components");
+}
+
+#[test]
+fn size_frame_and_triangle_count_are_in_range() {
+    let m = &component().mesh;
+    let (lo, hi) = m.bounds_mm();
+    let size = hi - lo;
+    assert!((60.0..=75.0).contains(&size.x) && (size.x - 68.0).abs() < 2.0, "ML {size}");
+    assert!((55.0..=65.0).contains(&size.z), "AP {size}");
+    assert!((50.0..=60.0).contains(&size.y), "PD {size}");
+    assert!(((lo + hi) * 0.5).length() < 1e-4, "origin must be the bounding-box centre: {lo} {hi}");
+    assert!((5_000..=100_000).contains(&m.triangles.len()), "{} triangles", m.triangles.len());
+    // The anterior flange is at +z and reaches highest (+y); the notch leaves x = 0 open at the back.
+    let top: Vec<DVec3> = (0..m.vertices.len() as u32).map(|i| vertex(m, i)).filter(|p| p.y > hi.y - 1.0).collect();
+    assert!(top.iter().all(|p| p.z > 0.0), "the flange top must be anterior");
+    let dir = DVec3::new(0.3, 0.8, 0.52);
+    for x in [-20.0, 20.0] {
+        assert_eq!(crossings(m, DVec3::new(x, lo.y + 25.0, lo.z + 4.0), dir) % 2, 1, "posterior condyle at x = {x}");
+    }
+    assert_eq!(crossings(m, DVec3::new(0.0, lo.y + 25.0, lo.z + 4.0), dir) % 2, 0, "the notch must separate the condyles");
+}
+
+#[test]
+fn beads_are_outside_clear_of_the_metal_and_well_spread() {
+    let c = component();
+    let m = &c.mesh;
+    assert!((4..=6).contains(&c.beads.len()));
+    for (i, bead) in c.beads.iter().enumerate() {
+        assert_eq!(bead.id, format!("K{}", i + 1));
+        assert_eq!(bead.diameter_mm, 1.0);
+        let p = DVec3::from_array(bead.position_mm);
+        let d = m
+            .triangles
+            .iter()
+            .map(|t| point_triangle_distance(p, vertex(m, t[0]), vertex(m, t[1]), vertex(m, t[2])))
+            .fold(f64::INFINITY, f64::min);
+        let gap = d - bead.diameter_mm / 2.0;
+        eprintln!("{} at {:?}: surface {gap:.3} mm from the metal", bead.id, bead.position_mm);
+        assert!((1.5..=8.0).contains(&gap), "{}: bead surface {gap} mm from the metal", bead.id);
+        for dir in [DVec3::new(0.3, 0.8, 0.52), DVec3::new(-0.61, -0.2, 0.77)] {
+            assert_eq!(crossings(m, p, dir) % 2, 0, "{} is inside the metal", bead.id);
+        }
+    }
+    let n = c.beads.len() as f64;
+    let centroid = c.beads.iter().map(|b| DVec3::from_array(b.position_mm)).sum::<DVec3>() / n;
+    let mut cov = [[0.0; 3]; 3];
+    for b in &c.beads {
+        let d = (DVec3::from_array(b.position_mm) - centroid).to_array();
+        for r in 0..3 {
+            for s in 0..3 {
+                cov[r][s] += d[r] * d[s] / n;
+            }
+        }
+    }
+    let e = symmetric_eigenvalues(cov);
+    eprintln!("bead covariance eigenvalues {e:?} mm², smallest/largest {:.3}", e[0] / e[2]);
+    assert!(e[0] / e[2] > 0.05, "bead spread eigenvalues {e:?}");
+}
+
+#[test]
+fn the_component_is_deterministic() {
+    assert_eq!(&femoral_component(), component());
+}
+
+#[test]
+fn the_shipped_model_matches_the_code() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/models/femoral_component.glb");
+    let shipped = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let expected = crate::phantom::mesh_io::glb_bytes(&component().mesh).unwrap();
+    assert!(
+        shipped == expected,
+        "{} is out of date: run `cargo run --release --example femoral_component -- scenarios/models/femoral_component.glb`",
+        path.display()
+    );
+    // And it loads back (glTF metres → mm) as the same closed surface.
+    let loaded = crate::phantom::mesh_io::load_mesh(&path, 1000.0).unwrap();
+    loaded.check_closed().unwrap();
+    assert_eq!(loaded.triangles, component().mesh.triangles);
+}
