@@ -45,3 +45,17 @@ fn outputs_are_identical_on_one_and_two_threads() {
     assert!(ha.len() > 20);
     assert_eq!(ha, hb);
 }
+
+#[test]
+fn shipped_scenarios_carry_the_generated_knee_beads() {
+    let beads = rsasim::phantom::femoral::femoral_component().beads;
+    for file in ["scenarios/biplanar.toml", "scenarios/uniplanar.toml"] {
+        let loaded = rsasim::scenario::load(&root().join(file)).unwrap_or_else(|e| panic!("{file}: {e:?}"));
+        let femur = loaded.scenario.phantoms.iter().find(|p| p.id == "femur").unwrap();
+        let listed = &femur.mesh.as_ref().unwrap().beads;
+        assert_eq!(listed.len(), beads.len(), "{file}");
+        for (a, b) in listed.iter().zip(&beads) {
+            assert_eq!((a.id.as_str(), a.position_mm, a.diameter_mm), (b.id.as_str(), b.position_mm, b.diameter_mm), "{file}");
+        }
+    }
+}
