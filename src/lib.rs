@@ -1,4 +1,5 @@
 //! rsasim: a Radio Stereometric Analysis simulator.
 pub mod diagnostic;
 pub mod geometry;
+pub mod noise;
 pub mod phantom;
