@@ -2,4 +2,5 @@
 pub mod diagnostic;
 pub mod geometry;
 pub mod noise;
+pub mod output;
 pub mod phantom;
