@@ -33,7 +33,10 @@ use rayon::prelude::*;
 /// # Panics
 /// When `level` is negative, NaN or infinite.
 pub fn add_noise_row(row: &mut [u16], row_index: u32, level: f64, i_max: u16, key: &NoiseKey) {
-    assert!(level.is_finite() && level >= 0.0, "noise level must be finite and ≥ 0, got {level}");
+    assert!(
+        level.is_finite() && level >= 0.0,
+        "noise level must be finite and ≥ 0, got {level}"
+    );
     if level == 0.0 {
         return;
     }
@@ -62,8 +65,14 @@ pub fn add_noise(pixels: &mut [u16], width: usize, level: f64, i_max: u16, key: 
         "pixel count {} is not a multiple of the width {width}",
         pixels.len()
     );
-    assert!(pixels.len() / width <= u32::MAX as usize + 1, "too many rows");
-    assert!(level.is_finite() && level >= 0.0, "noise level must be finite and ≥ 0, got {level}");
+    assert!(
+        (pixels.len() / width) as u64 <= 1u64 << 32,
+        "more than 2³² rows"
+    );
+    assert!(
+        level.is_finite() && level >= 0.0,
+        "noise level must be finite and ≥ 0, got {level}"
+    );
     if level == 0.0 {
         return;
     }
@@ -163,7 +172,10 @@ mod tests {
             add_noise_row(row, j as u32, 0.45, i_max, &key());
         }
         for threads in [1, 2] {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             let mut par = clean.clone();
             pool.install(|| add_noise(&mut par, w, 0.45, i_max, &key()));
             assert_eq!(par, seq, "{threads} threads");
@@ -179,10 +191,20 @@ mod tests {
             add_noise(&mut img, w, level, i_max, &key());
             let n = img.len() as f64;
             let mean = img.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
-            let var = img.iter().map(|&v| (f64::from(v) - mean).powi(2)).sum::<f64>() / (n - 1.0);
-            assert!((mean - lambda).abs() < 5.0 * (lambda / n).sqrt(), "level {level}: mean {mean}");
+            let var = img
+                .iter()
+                .map(|&v| (f64::from(v) - mean).powi(2))
+                .sum::<f64>()
+                / (n - 1.0);
+            assert!(
+                (mean - lambda).abs() < 5.0 * (lambda / n).sqrt(),
+                "level {level}: mean {mean}"
+            );
             let se_var = ((lambda + 2.0 * lambda * lambda) / n).sqrt();
-            assert!((var - lambda).abs() < 5.0 * se_var, "level {level}: var {var}");
+            assert!(
+                (var - lambda).abs() < 5.0 * se_var,
+                "level {level}: var {var}"
+            );
         }
     }
 
@@ -203,7 +225,10 @@ mod tests {
         let (w, i_max) = (1440usize, 65535u16);
         let clean = vec![0u16; w * w];
         for threads in [1, 2] {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
             let mut times = Vec::new();
             for _ in 0..5 {
                 let mut img = clean.clone();

@@ -34,9 +34,17 @@ pub struct Poisson {
 enum Method {
     Zero,
     /// Knuth: `exp(−λ)`.
-    Knuth { exp_neg_lambda: f64 },
+    Knuth {
+        exp_neg_lambda: f64,
+    },
     /// Hörmann PTRS constants.
-    Ptrs { ln_lambda: f64, a: f64, b: f64, ln_inv_alpha: f64, v_r: f64 },
+    Ptrs {
+        ln_lambda: f64,
+        a: f64,
+        b: f64,
+        ln_inv_alpha: f64,
+        v_r: f64,
+    },
 }
 
 impl Poisson {
@@ -52,14 +60,22 @@ impl Poisson {
         let method = if lambda == 0.0 {
             Method::Zero
         } else if lambda < PTRS_THRESHOLD {
-            Method::Knuth { exp_neg_lambda: libm::exp(-lambda) }
+            Method::Knuth {
+                exp_neg_lambda: libm::exp(-lambda),
+            }
         } else {
             let s = libm::sqrt(lambda);
             let b = 0.931 + 2.53 * s;
             let a = -0.059 + 0.02483 * b;
             let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
             let v_r = 0.9277 - 3.6224 / (b - 2.0);
-            Method::Ptrs { ln_lambda: libm::log(lambda), a, b, ln_inv_alpha: libm::log(inv_alpha), v_r }
+            Method::Ptrs {
+                ln_lambda: libm::log(lambda),
+                a,
+                b,
+                ln_inv_alpha: libm::log(inv_alpha),
+                v_r,
+            }
         };
         Poisson { lambda, method }
     }
@@ -82,7 +98,13 @@ impl Poisson {
                 }
                 k
             }
-            Method::Ptrs { ln_lambda, a, b, ln_inv_alpha, v_r } => {
+            Method::Ptrs {
+                ln_lambda,
+                a,
+                b,
+                ln_inv_alpha,
+                v_r,
+            } => {
                 let lambda = self.lambda;
                 loop {
                     let u = uniform(rng) - 0.5;
@@ -132,7 +154,10 @@ mod tests {
     #[test]
     fn mean_and_variance_within_five_standard_errors() {
         const N: usize = 200_000;
-        for (i, &lambda) in [0.5, 3.0, 9.99, 10.0, 100.0, 14745.375, 58981.5].iter().enumerate() {
+        for (i, &lambda) in [0.5, 3.0, 9.99, 10.0, 100.0, 14745.375, 58981.5]
+            .iter()
+            .enumerate()
+        {
             let p = Poisson::new(lambda);
             let mut r = rng(i as u32);
             let xs: Vec<f64> = (0..N).map(|_| p.sample(&mut r) as f64).collect();
@@ -142,8 +167,14 @@ mod tests {
             let se_mean = (lambda / n).sqrt();
             // Var(s²) ≈ (μ₄ − σ⁴)/n with μ₄ = λ(1 + 3λ) for a Poisson law.
             let se_var = ((lambda + 2.0 * lambda * lambda) / n).sqrt();
-            assert!((mean - lambda).abs() < 5.0 * se_mean, "λ={lambda}: mean {mean}");
-            assert!((var - lambda).abs() < 5.0 * se_var, "λ={lambda}: variance {var}");
+            assert!(
+                (mean - lambda).abs() < 5.0 * se_mean,
+                "λ={lambda}: mean {mean}"
+            );
+            assert!(
+                (var - lambda).abs() < 5.0 * se_var,
+                "λ={lambda}: variance {var}"
+            );
         }
     }
 
@@ -181,7 +212,10 @@ mod tests {
         for k in lo + 1..hi {
             bins.push((counts[k] as f64, expected[k]));
         }
-        bins.push((counts[hi..].iter().sum::<usize>() as f64, expected[hi] + upper_exp));
+        bins.push((
+            counts[hi..].iter().sum::<usize>() as f64,
+            expected[hi] + upper_exp,
+        ));
         let stat = bins.iter().map(|(o, e)| (o - e) * (o - e) / e).sum();
         (stat, bins.len() - 1)
     }

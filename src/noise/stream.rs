@@ -149,7 +149,8 @@ mod tests {
         assert_ne!(key, NoiseKey::derive(42, 2, 7, "ap", "det_b"));
     }
 
-    const EXPECTED_KEY_HEX: &str = "cf97ee1b7535e32afe1cfc6fe628cbf83d921ce19e8008ede09335a00e065658";
+    const EXPECTED_KEY_HEX: &str =
+        "cf97ee1b7535e32afe1cfc6fe628cbf83d921ce19e8008ede09335a00e065658";
 
     #[test]
     fn row_rng_matches_reference_chacha8() {

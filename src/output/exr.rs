@@ -128,7 +128,9 @@ fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<LayerAttributes, S
     let mut la = LayerAttributes::default();
     for (i, (name, value)) in attributes.iter().enumerate() {
         if name.is_empty() || name.contains('\0') {
-            return Err(format!("EXR attribute name {name:?} is empty or contains NUL"));
+            return Err(format!(
+                "EXR attribute name {name:?} is empty or contains NUL"
+            ));
         }
         if attributes[..i].iter().any(|(n, _)| n == name) {
             return Err(format!("EXR attribute {name:?} is given twice"));
@@ -142,7 +144,9 @@ fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<LayerAttributes, S
             continue;
         }
         if standard_names::ALL.contains(&key.as_slice()) {
-            return Err(format!("EXR attribute name {name:?} is reserved by OpenEXR"));
+            return Err(format!(
+                "EXR attribute name {name:?} is reserved by OpenEXR"
+            ));
         }
         let value = match value {
             ExrAttr::Text(s) => AttributeValue::Text(latin1(&format!("attribute {name:?}"), s)?),
@@ -174,7 +178,10 @@ fn sort_header_attributes(bytes: &mut [u8]) -> Result<(), String> {
         let size_at = type_end + 1;
         let size = bytes.get(size_at..size_at + 4).ok_or_else(bad)?;
         let size = i32::from_le_bytes(size.try_into().unwrap());
-        let end = usize::try_from(size).ok().and_then(|s| (size_at + 4).checked_add(s)).ok_or_else(bad)?;
+        let end = usize::try_from(size)
+            .ok()
+            .and_then(|s| (size_at + 4).checked_add(s))
+            .ok_or_else(bad)?;
         if end > bytes.len() {
             return Err(bad());
         }
@@ -200,8 +207,12 @@ mod tests {
     use super::*;
     use crate::noise::{NoiseKey, add_noise};
 
-    const ALL: [ExrCompression; 4] =
-        [ExrCompression::None, ExrCompression::Rle, ExrCompression::Zip, ExrCompression::Zips];
+    const ALL: [ExrCompression; 4] = [
+        ExrCompression::None,
+        ExrCompression::Rle,
+        ExrCompression::Zip,
+        ExrCompression::Zips,
+    ];
 
     fn noisy(w: usize, h: usize, level: f64, i_max: u16) -> Vec<f32> {
         let mut v = vec![0u16; w * h];
@@ -213,7 +224,13 @@ mod tests {
                 }
             }
         }
-        add_noise(&mut v, w, level, i_max, &NoiseKey::derive(4, 0, 0, "exr", "test"));
+        add_noise(
+            &mut v,
+            w,
+            level,
+            i_max,
+            &NoiseKey::derive(4, 0, 0, "exr", "test"),
+        );
         v.into_iter().map(f32::from).collect()
     }
 
@@ -228,7 +245,10 @@ mod tests {
             ("noise_level", ExrAttr::F64(0.45)),
             ("exposure", ExrAttr::Text("ap".into())),
             ("detector", ExrAttr::Text("det_a".into())),
-            ("a_long_attribute_name_longer_than_31_bytes", ExrAttr::Text("Zürich".into())),
+            (
+                "a_long_attribute_name_longer_than_31_bytes",
+                ExrAttr::Text("Zürich".into()),
+            ),
         ]
     }
 
@@ -268,14 +288,26 @@ mod tests {
             let ch = &layer.channel_data.list[0];
             assert_eq!(ch.name, Text::from("Y"));
             let back: Vec<f32> = ch.sample_data.values_as_f32().collect();
-            assert!(back.iter().zip(&px).all(|(a, b)| a.to_bits() == b.to_bits()), "{c:?}");
+            assert!(
+                back.iter()
+                    .zip(&px)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{c:?}"
+            );
             let a = &layer.attributes;
             assert_eq!(a.software_name, Some(Text::from("rsasim 0.1")));
             for (name, value) in attrs().into_iter().skip(1) {
-                let got = a.other.get(&Text::new_or_panic(name)).unwrap_or_else(|| panic!("{name}"));
+                let got = a
+                    .other
+                    .get(&Text::new_or_panic(name))
+                    .unwrap_or_else(|| panic!("{name}"));
                 match (value, got) {
-                    (ExrAttr::Text(s), AttributeValue::Text(t)) => assert_eq!(*t, Text::new_or_panic(&s)),
-                    (ExrAttr::F64(v), AttributeValue::F64(g)) => assert_eq!(v.to_bits(), g.to_bits()),
+                    (ExrAttr::Text(s), AttributeValue::Text(t)) => {
+                        assert_eq!(*t, Text::new_or_panic(&s))
+                    }
+                    (ExrAttr::F64(v), AttributeValue::F64(g)) => {
+                        assert_eq!(v.to_bits(), g.to_bits())
+                    }
                     (ExrAttr::I32(v), AttributeValue::I32(g)) => assert_eq!(v, *g),
                     (v, g) => panic!("{name}: wrote {v:?}, read {g:?}"),
                 }
@@ -307,9 +339,14 @@ mod tests {
     fn default_is_zip_and_no_attributes_is_fine() {
         let px: Vec<f32> = (0..12).map(|i| i as f32).collect();
         let a = encode_exr(4, 3, &px, &[]).unwrap();
-        assert_eq!(a, encode_exr_with(4, 3, &px, &[], ExrCompression::Zip).unwrap());
-        let back: Vec<f32> =
-            read_back(&a).layer_data.channel_data.list[0].sample_data.values_as_f32().collect();
+        assert_eq!(
+            a,
+            encode_exr_with(4, 3, &px, &[], ExrCompression::Zip).unwrap()
+        );
+        let back: Vec<f32> = read_back(&a).layer_data.channel_data.list[0]
+            .sample_data
+            .values_as_f32()
+            .collect();
         assert_eq!(back, px);
     }
 
@@ -330,7 +367,10 @@ mod tests {
     #[test]
     fn serde_names_and_default() {
         assert_eq!(ExrCompression::default(), ExrCompression::Zip);
-        let names: Vec<String> = ALL.iter().map(|c| serde_json::to_string(c).unwrap()).collect();
+        let names: Vec<String> = ALL
+            .iter()
+            .map(|c| serde_json::to_string(c).unwrap())
+            .collect();
         assert_eq!(names, ["\"none\"", "\"rle\"", "\"zip\"", "\"zips\""]);
         let _ = schemars::schema_for!(ExrCompression);
     }
@@ -356,8 +396,10 @@ mod tests {
             let t = std::time::Instant::now();
             let img = read_back(&bytes);
             let dt = t.elapsed().as_secs_f64();
-            let back: Vec<f32> =
-                img.layer_data.channel_data.list[0].sample_data.values_as_f32().collect();
+            let back: Vec<f32> = img.layer_data.channel_data.list[0]
+                .sample_data
+                .values_as_f32()
+                .collect();
             assert_eq!(back, px);
             println!(
                 "exr 1440² {c:?}: encode median {:6.1} ms, {size:8} bytes ({:.2} bytes/px), decode {:.1} ms",

@@ -20,7 +20,9 @@ impl TiffCompression {
         match self {
             TiffCompression::None => (Compression::Uncompressed, Predictor::None),
             TiffCompression::Lzw => (Compression::Lzw, Predictor::Horizontal),
-            TiffCompression::Deflate => (Compression::Deflate(DEFLATE_LEVEL), Predictor::Horizontal),
+            TiffCompression::Deflate => {
+                (Compression::Deflate(DEFLATE_LEVEL), Predictor::Horizontal)
+            }
             TiffCompression::Packbits => (Compression::Packbits, Predictor::None),
         }
     }
@@ -40,7 +42,15 @@ pub fn encode_tiff(
     software: &str,
 ) -> Result<Vec<u8>, String> {
     let (compression, predictor) = compression.settings();
-    encode_with(width, height, pixels, compression, predictor, description, software)
+    encode_with(
+        width,
+        height,
+        pixels,
+        compression,
+        predictor,
+        description,
+        software,
+    )
 }
 
 fn encode_with(
@@ -74,8 +84,14 @@ fn encode_with(
             .with_compression(compression)
             .with_predictor(predictor);
         let mut image = encoder.new_image::<Gray16>(width, height).map_err(err)?;
-        image.encoder().write_tag(Tag::ImageDescription, description).map_err(err)?;
-        image.encoder().write_tag(Tag::Software, software).map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::ImageDescription, description)
+            .map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::Software, software)
+            .map_err(err)?;
         image.write_data(pixels).map_err(err)?;
     }
     Ok(out.into_inner())
@@ -105,7 +121,13 @@ mod tests {
                 }
             }
         }
-        add_noise(&mut v, w, level, i_max, &NoiseKey::derive(3, 0, 0, "tiff", "test"));
+        add_noise(
+            &mut v,
+            w,
+            level,
+            i_max,
+            &NoiseKey::derive(3, 0, 0, "tiff", "test"),
+        );
         v
     }
 
@@ -142,7 +164,9 @@ mod tests {
 
     #[test]
     fn extreme_values_round_trip() {
-        let px: Vec<u16> = (0..64 * 3).map(|i| [0u16, 65535, 1, 65534][i % 4]).collect();
+        let px: Vec<u16> = (0..64 * 3)
+            .map(|i| [0u16, 65535, 1, 65534][i % 4])
+            .collect();
         for c in ALL {
             let bytes = encode_tiff(64, 3, &px, c, "", "").unwrap();
             assert_eq!(decode(&bytes).2, px, "{c:?}");
@@ -160,8 +184,14 @@ mod tests {
     #[test]
     fn serde_names_and_default() {
         assert_eq!(TiffCompression::default(), TiffCompression::Deflate);
-        let names: Vec<String> = ALL.iter().map(|c| serde_json::to_string(c).unwrap()).collect();
-        assert_eq!(names, ["\"none\"", "\"lzw\"", "\"deflate\"", "\"packbits\""]);
+        let names: Vec<String> = ALL
+            .iter()
+            .map(|c| serde_json::to_string(c).unwrap())
+            .collect();
+        assert_eq!(
+            names,
+            ["\"none\"", "\"lzw\"", "\"deflate\"", "\"packbits\""]
+        );
         let back: TiffCompression = serde_json::from_str("\"packbits\"").unwrap();
         assert_eq!(back, TiffCompression::Packbits);
         let schema = serde_json::to_string(&schemars::schema_for!(TiffCompression)).unwrap();
@@ -174,39 +204,74 @@ mod tests {
     #[ignore]
     fn bench_tiff_1440() {
         let w = 1440u32;
-        // λ ≈ 15000 on the background: level 0.2289 of I_max = 65535 → λ = 15001.
-        let px = noisy(w as usize, w as usize, 15000.0 / 65535.0, 65535);
+        let n = (w * w) as usize;
+        // A smooth image (what a noise-free path-length mode could give) for comparison.
+        let smooth: Vec<u16> = (0..n)
+            .map(|k| {
+                let (i, j) = ((k % 1440) as f64, (k / 1440) as f64);
+                (20000.0 + 15000.0 * libm::sin(i / 200.0) * libm::cos(j / 300.0)) as u16
+            })
+            .collect();
+        let images: Vec<(&str, Vec<u16>)> = vec![
+            ("binary, no noise", noisy(1440, 1440, 0.0, 65535)),
+            ("noise λ≈66 (level 0.001)", noisy(1440, 1440, 0.001, 65535)),
+            ("noise λ≈15000", noisy(1440, 1440, 15000.0 / 65535.0, 65535)),
+            ("noise level 0.9 (λ≈58982)", noisy(1440, 1440, 0.9, 65535)),
+            ("smooth, no noise", smooth),
+        ];
         let cases: Vec<(&str, Compression, Predictor)> = vec![
             ("none", Compression::Uncompressed, Predictor::None),
-            ("lzw", Compression::Lzw, Predictor::None),
-            ("lzw + predictor", Compression::Lzw, Predictor::Horizontal),
             ("packbits", Compression::Packbits, Predictor::None),
-            ("deflate fast", Compression::Deflate(DeflateLevel::Fast), Predictor::None),
-            ("deflate fast + predictor", Compression::Deflate(DeflateLevel::Fast), Predictor::Horizontal),
-            ("deflate balanced + predictor", Compression::Deflate(DeflateLevel::Balanced), Predictor::Horizontal),
-            ("deflate best + predictor", Compression::Deflate(DeflateLevel::Best), Predictor::Horizontal),
+            ("lzw", Compression::Lzw, Predictor::None),
+            ("lzw + pred", Compression::Lzw, Predictor::Horizontal),
+            (
+                "deflate fast",
+                Compression::Deflate(DeflateLevel::Fast),
+                Predictor::None,
+            ),
+            (
+                "deflate fast + pred",
+                Compression::Deflate(DeflateLevel::Fast),
+                Predictor::Horizontal,
+            ),
+            (
+                "deflate balanced",
+                Compression::Deflate(DeflateLevel::Balanced),
+                Predictor::None,
+            ),
+            (
+                "deflate balanced + pred",
+                Compression::Deflate(DeflateLevel::Balanced),
+                Predictor::Horizontal,
+            ),
+            (
+                "deflate best + pred",
+                Compression::Deflate(DeflateLevel::Best),
+                Predictor::Horizontal,
+            ),
         ];
-        for (name, c, p) in cases {
-            let mut times = Vec::new();
-            let mut size = 0;
-            for _ in 0..5 {
+        for (image, px) in &images {
+            for (name, c, p) in &cases {
+                let mut times = Vec::new();
+                let mut bytes = Vec::new();
+                for _ in 0..5 {
+                    let t = std::time::Instant::now();
+                    bytes = encode_with(w, w, px, *c, *p, "bench", "rsasim").unwrap();
+                    times.push(t.elapsed().as_secs_f64());
+                }
+                times.sort_by(f64::total_cmp);
                 let t = std::time::Instant::now();
-                let bytes = encode_with(w, w, &px, c, p, "bench", "rsasim").unwrap();
-                times.push(t.elapsed().as_secs_f64());
-                size = bytes.len();
+                let back = decode(&bytes).2;
+                let dt = t.elapsed().as_secs_f64();
+                assert_eq!(&back, px);
+                println!(
+                    "tiff 1440² {image:27} {name:24}: encode {:6.1} ms, {:8} bytes ({:.2} B/px), decode {:5.1} ms",
+                    times[2] * 1e3,
+                    bytes.len(),
+                    bytes.len() as f64 / n as f64,
+                    dt * 1e3
+                );
             }
-            times.sort_by(f64::total_cmp);
-            let t = std::time::Instant::now();
-            let bytes = encode_with(w, w, &px, c, p, "bench", "rsasim").unwrap();
-            let back = decode(&bytes).2;
-            let dt = t.elapsed().as_secs_f64();
-            assert_eq!(back, px);
-            println!(
-                "tiff 1440² {name:30}: encode median {:6.1} ms, {size:8} bytes ({:.2} bytes/px), decode {:.1} ms",
-                times[2] * 1e3,
-                size as f64 / (w * w) as f64,
-                dt * 1e3
-            );
         }
     }
 }
