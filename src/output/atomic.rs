@@ -11,7 +11,12 @@ use crate::scenario::hex;
 /// Returns the SHA-256 of the bytes, lowercase hex.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<String> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new().prefix(".rsasim-").suffix(".partial").tempfile_in(dir)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".rsasim-").suffix(".partial");
+    // Temporary files are created 0600; outputs are ordinary files for every reader (0644).
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+    let mut tmp = builder.tempfile_in(dir)?;
     tmp.write_all(bytes)?;
     tmp.as_file().sync_data()?;
     tmp.persist(path).map_err(|e| e.error)?;
@@ -74,6 +79,12 @@ mod tests {
         assert!(!target.exists());
         staged.commit().unwrap();
         assert_eq!(std::fs::read(target.join("a.txt")).unwrap(), b"abc");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(target.join("a.txt")).unwrap().permissions().mode();
+            assert_eq!(mode & 0o777, 0o644);
+        }
         assert!(StagedDir::create(&target, false).is_err());
         let again = StagedDir::create(&target, true).unwrap();
         again.commit().unwrap();
