@@ -123,10 +123,8 @@ impl fmt::Display for Diagnostic {
         if let Some((line, col)) = self.line_col {
             write!(f, ":{line}:{col}")?;
         }
-        if let Some(path) = &self.key_path {
-            if !path.0.is_empty() {
-                write!(f, ": `{path}`")?;
-            }
+        if let Some(path) = self.key_path.as_ref().filter(|p| !p.0.is_empty()) {
+            write!(f, ": `{path}`")?;
         }
         write!(f, ": {}", self.message)?;
         if let (Some(src), Some((line, col))) = (&self.source_line, self.line_col) {
@@ -193,7 +191,8 @@ impl Locator {
     /// Array-of-tables spans cover only their headers, so this searches the whole tree depth first.
     pub fn path_at(&self, offset: usize) -> Option<KeyPath> {
         fn walk(v: &DeValue, offset: usize, path: &mut KeyPath) -> bool {
-            let children: Vec<(Segment, Option<Range<usize>>, &Spanned<DeValue>)> = match v {
+            type Child<'a> = (Segment, Option<Range<usize>>, &'a Spanned<DeValue<'a>>);
+            let children: Vec<Child> = match v {
                 DeValue::Table(t) => {
                     t.iter().map(|(k, v)| (Segment::Key(k.get_ref().to_string()), Some(k.span()), v)).collect()
                 }
