@@ -145,3 +145,100 @@ fn draw_pose(rng: &mut ChaCha8Rng, position_mm: [f64; 3], rotation_deg: [f64; 3]
     let turn = range.rotation_deg.map(|h| random::symmetric(rng, h));
     Pose { position_mm: position, rotation: rotation_xyz_deg(rotation_deg) * rotation_xyz_deg(turn) }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::phantom;
+    use crate::scenario::from_text;
+
+    const SCENARIO: &str = r#"name = "t"
+seed = 9
+[protocol]
+noise_levels = [0.0, 0.5]
+runs_per_level = RUNS
+[[sources]]
+id = "s"
+position_mm = [0.0, 0.0, 1000.0]
+randomize.position_mm = [SRC, 20.0, 20.0]
+[[detectors]]
+id = "d"
+source = "s"
+pixels = [10, 10]
+size_mm = [400.0, 400.0]
+position_mm = [0.0, 0.0, -500.0]
+randomize.position_mm = [5.0, 5.0, 5.0]
+randomize.rotation_deg = [1.0, 1.0, 1.0]
+[[phantoms]]
+id = "box"
+position_mm = [1.0, 2.0, 3.0]
+rotation_deg = [0.0, 0.0, 30.0]
+[[phantoms.calibration_box.plates]]
+id = "F"
+role = "fiducial"
+center_mm = [0.0, 0.0, 0.0]
+size_mm = [50.0, 50.0]
+grid = [2, 2]
+spacing_mm = [20.0, 20.0]
+[[phantoms]]
+id = "b"
+randomize.rotation_deg = [5.0, 5.0, 5.0]
+[[phantoms.beads]]
+id = "B"
+position_mm = [10.0, 0.0, 0.0]
+[[exposures]]
+id = "e"
+phantoms = ["box", "b"]
+"#;
+
+    fn runs(runs: u32, levels: &str, source_range: f64) -> Vec<Run> {
+        let text = SCENARIO
+            .replace("RUNS", &runs.to_string())
+            .replace("[0.0, 0.5]", levels)
+            .replace("SRC", &format!("{source_range:.1}"));
+        let loaded = from_text(&text, Path::new("t.toml"), Path::new(".")).unwrap_or_else(|e| panic!("{e:?}"));
+        let models = phantom::build(&loaded).unwrap();
+        expand(&loaded.scenario, &models)
+    }
+
+    #[test]
+    fn run_k_of_level_n_does_not_depend_on_the_run_count_or_other_levels() {
+        let few = runs(3, "[0.0, 0.5]", 20.0);
+        let many = runs(200, "[0.0, 0.5]", 20.0);
+        assert_eq!(few[4], many.iter().find(|r| r.id == "n1-r01").unwrap().clone());
+        assert_eq!(many.len(), 400);
+        assert_eq!(many[399].id, "n1-r199");
+        // Adding a level in front shifts indices, so the level keeps its index: add one at the end.
+        let more_levels = runs(3, "[0.0, 0.5, 0.9]", 20.0);
+        assert_eq!(few[..], more_levels[..6]);
+        // Runs differ from each other.
+        assert_ne!(few[0].sources, few[1].sources);
+    }
+
+    #[test]
+    fn widening_one_range_moves_no_other_object() {
+        let a = runs(2, "[0.0]", 20.0);
+        let b = runs(2, "[0.0]", 40.0);
+        assert_ne!(a[1].sources, b[1].sources);
+        assert_eq!(a[1].detectors, b[1].detectors);
+        assert_eq!(a[1].phantoms, b[1].phantoms);
+    }
+
+    #[test]
+    fn everything_is_expressed_in_the_box_frame() {
+        let r = &runs(1, "[0.0]", 20.0)[0];
+        let boxed = &r.phantoms[0];
+        assert!((boxed.position_mm).length() < 1e-12);
+        assert!((boxed.rotation - glam::DMat3::IDENTITY).abs_diff_eq(glam::DMat3::ZERO, 1e-12));
+        // The scanner-frame box pose is recorded, and maps truth back to the scanner frame.
+        let scanner_source = r.box_pose_in_scanner.to_world(r.sources[0].position_mm);
+        assert!((scanner_source.z - 1000.0).abs() <= 20.0);
+        assert!((r.box_pose_in_scanner.position_mm - DVec3::new(1.0, 2.0, 3.0)).length() < 1e-12);
+        // A bead's world position is its phantom's pose applied to its local position.
+        let bead = &r.phantoms[1];
+        let expected = bead.pose().to_world(DVec3::new(10.0, 0.0, 0.0));
+        assert!((bead.markers[0].position_mm - expected).length() < 1e-12);
+    }
+}
