@@ -205,7 +205,7 @@ fn sort_header_attributes(bytes: &mut [u8]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::{NoiseKey, add_noise};
+    use crate::noise::NoiseKey;
 
     const ALL: [ExrCompression; 4] = [
         ExrCompression::None,
@@ -215,23 +215,7 @@ mod tests {
     ];
 
     fn noisy(w: usize, h: usize, level: f64, i_max: u16) -> Vec<f32> {
-        let mut v = vec![0u16; w * h];
-        for j in 0..h {
-            for i in 0..w {
-                let (x, y) = (i as f64 - w as f64 / 2.0, j as f64 - h as f64 / 2.0);
-                if x * x + y * y < (w as f64 / 5.0).powi(2) {
-                    v[j * w + i] = i_max;
-                }
-            }
-        }
-        add_noise(
-            &mut v,
-            w,
-            level,
-            i_max,
-            &NoiseKey::derive(4, 0, 0, "exr", "test"),
-        );
-        v.into_iter().map(f32::from).collect()
+        crate::output::test_image::noisy_disc(w, h, level, i_max, &NoiseKey::derive(4, 0, 0, "exr", "test")).into_iter().map(f32::from).collect()
     }
 
     fn attrs() -> Vec<(&'static str, ExrAttr)> {

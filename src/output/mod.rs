@@ -26,3 +26,24 @@ pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
         ("manifest", schemars::schema_for!(Manifest).as_value().clone()),
     ]
 }
+
+/// Synthetic images for the encoders' tests.
+#[cfg(test)]
+pub(crate) mod test_image {
+    use crate::noise::{NoiseKey, add_noise};
+
+    /// A binary-mode image: a disc at `i_max` (diameter 0.4·w) on Poisson background noise.
+    pub fn noisy_disc(w: usize, h: usize, level: f64, i_max: u16, key: &NoiseKey) -> Vec<u16> {
+        let mut v = vec![0u16; w * h];
+        for j in 0..h {
+            for i in 0..w {
+                let (x, y) = (i as f64 - w as f64 / 2.0, j as f64 - h as f64 / 2.0);
+                if x * x + y * y < (w as f64 / 5.0).powi(2) {
+                    v[j * w + i] = i_max;
+                }
+            }
+        }
+        add_noise(&mut v, w, level, i_max, key);
+        v
+    }
+}

@@ -100,7 +100,7 @@ fn encode_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::{NoiseKey, add_noise};
+    use crate::noise::NoiseKey;
     use ::tiff::decoder::{Decoder, DecodingResult};
 
     const ALL: [TiffCompression; 4] = [
@@ -110,25 +110,8 @@ mod tests {
         TiffCompression::Packbits,
     ];
 
-    /// Binary-mode image (a disc at `i_max`) with Poisson background noise.
     fn noisy(w: usize, h: usize, level: f64, i_max: u16) -> Vec<u16> {
-        let mut v = vec![0u16; w * h];
-        for j in 0..h {
-            for i in 0..w {
-                let (x, y) = (i as f64 - w as f64 / 2.0, j as f64 - h as f64 / 2.0);
-                if x * x + y * y < (w as f64 / 5.0).powi(2) {
-                    v[j * w + i] = i_max;
-                }
-            }
-        }
-        add_noise(
-            &mut v,
-            w,
-            level,
-            i_max,
-            &NoiseKey::derive(3, 0, 0, "tiff", "test"),
-        );
-        v
+        crate::output::test_image::noisy_disc(w, h, level, i_max, &NoiseKey::derive(3, 0, 0, "tiff", "test"))
     }
 
     fn decode(bytes: &[u8]) -> (u32, u32, Vec<u16>, String, String, u16, u16) {
