@@ -24,7 +24,7 @@ fn main() {
     let run = plan.runs.iter().find(|r| r.id == "n2-r07").expect("run n2-r07");
     let det = &run.detectors[0];
     let frame = det.frame();
-    let source = run.sources.iter().find(|x| x.id == det.source).unwrap().position_mm;
+    let source = run.source_of(det);
     let bvh_start = Instant::now();
     let femur = plan.models.iter().position(|m| m.id == "femur").unwrap();
     let bvh = MeshBvh::new(plan.models[femur].mesh.as_ref().unwrap());

@@ -188,7 +188,7 @@ fn write_run(
         }
         for det in &run.detectors {
             let frame = det.frame();
-            let source = run.sources.iter().find(|x| x.id == det.source).expect("validated source id").position_mm;
+            let source = run.source_of(det);
             let mut pixels = trace::render_binary(&frame, source, &objects, det.i_max());
             let key = NoiseKey::derive(s.seed, run.noise_level_index, run.run_index, &exposure.id, &det.id);
             noise::add_noise(&mut pixels, det.pixels[0] as usize, run.noise_level, det.i_max(), &key);

@@ -25,7 +25,7 @@ pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel], runs: &[
             for run in runs {
                 let dstate = &run.detectors[di];
                 let frame = dstate.frame();
-                let source = run.sources.iter().find(|x| x.id == dstate.source).expect("validated source id").position_mm;
+                let source = run.source_of(dstate);
                 let s_local = frame.pose.to_local(source);
                 let pose = run.phantoms[pi].pose();
                 let mut outside = false;

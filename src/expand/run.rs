@@ -36,6 +36,13 @@ pub struct Run {
     pub exposures: Vec<ExposureState>,
 }
 
+impl Run {
+    /// The focus position of the source a detector pairs with, mm, box frame.
+    pub fn source_of(&self, detector: &DetectorState) -> DVec3 {
+        self.sources.iter().find(|s| s.id == detector.source).expect("validated: every detector names a source").position_mm
+    }
+}
+
 /// A source's drawn position.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
