@@ -8,4 +8,5 @@ pub mod expand;
 pub mod trace;
 pub mod noise;
 pub mod output;
+pub mod evaluate;
 pub mod simulate;
