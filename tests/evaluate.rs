@@ -1,0 +1,222 @@
+//! `rsasim evaluate` end to end: measured files with known errors give exactly those truenesses
+//! and precisions; bad results are clear errors with exit code 2.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::run_scenario;
+use rsasim::evaluate::stats::{Cell, Confidence, Significance};
+use rsasim::evaluate::table::{Report, Table};
+use rsasim::evaluate::{MeasuredSource, Options, evaluate};
+use rsasim::geometry::{DMat3, DVec3, rotation_xyz_deg};
+use rsasim::output::Truth;
+use rsasim::output::measured::{Measured, MeasuredPoint, MeasuredPose};
+
+fn rows(m: DMat3) -> [[f64; 3]; 3] {
+    let t = m.transpose();
+    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+}
+
+/// A simulated output folder (tiny images, 2 levels × 20 runs) in a temporary directory.
+fn simulated() -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("eval");
+    run_scenario("tests/scenarios/evaluate.toml", &out, &[]);
+    (tmp, out)
+}
+
+fn truths(out: &Path) -> Vec<(PathBuf, Truth)> {
+    let mut v: Vec<_> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| {
+            let dir = e.unwrap().path();
+            let t: Truth = serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
+            (dir, t)
+        })
+        .collect();
+    v.sort_by(|a, b| a.1.run.id.cmp(&b.1.run.id));
+    v
+}
+
+/// A deterministic standard normal sample per run (Box–Muller over a simple LCG): scatter of known SD.
+fn normal(k: u64) -> f64 {
+    let lcg = |x: u64| x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let (a, b) = (lcg(k + 1), lcg(lcg(k + 1)));
+    let (u1, u2) = (((a >> 11) as f64 + 1.0) / (1u64 << 53) as f64, (b >> 11) as f64 / (1u64 << 53) as f64);
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+/// The truth, with: det1 moved +0.10 mm along its s axis; the femur turned +0.5° about z;
+/// tube2 scattered along its beamline's r with SD 0.2 mm; everything else exact.
+fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
+    let run = &truth.run;
+    let det2 = run.detectors.iter().find(|d| d.id == "det2").unwrap();
+    Measured {
+        format: "rsasim-measured/1".into(),
+        run: run.id.clone(),
+        software: "known-errors 1.0".into(),
+        sources: run
+            .sources
+            .iter()
+            .map(|s| {
+                let p = if s.id == "tube2" { s.position_mm + det2.rotation.x_axis * (0.2 * normal(k as u64)) } else { s.position_mm };
+                MeasuredPoint { id: s.id.clone(), position_mm: p.to_array() }
+            })
+            .collect(),
+        detectors: run
+            .detectors
+            .iter()
+            .map(|d| {
+                let p = if d.id == "det1" { d.position_mm + d.rotation.z_axis * 0.10 } else { d.position_mm };
+                MeasuredPose { id: d.id.clone(), position_mm: p.to_array(), rotation: Some(rows(d.rotation)), markers: vec![] }
+            })
+            .collect(),
+        phantoms: run
+            .phantoms
+            .iter()
+            .filter(|p| p.kind != "calibration_box")
+            .map(|p| MeasuredPose {
+                id: p.id.clone(),
+                position_mm: p.position_mm.to_array(),
+                rotation: Some(rows(rotation_xyz_deg([0.0, 0.0, 0.5]) * p.rotation)),
+                markers: vec![],
+            })
+            .collect(),
+    }
+}
+
+fn table<'a>(r: &'a Report, id: &str) -> &'a Table {
+    r.tables.iter().find(|t| t.id == id).unwrap_or_else(|| panic!("no table {id}"))
+}
+
+fn cell(t: &Table, level: usize, group: &str, column: &str) -> Cell {
+    let mut k = 0;
+    for g in &t.groups {
+        for c in &g.columns {
+            if g.label.starts_with(group) && c.label == column {
+                return t.rows[level].cells[k].clone().unwrap();
+            }
+            k += 1;
+        }
+    }
+    panic!("no column {group}/{column} in {}", t.id)
+}
+
+fn options() -> Options {
+    Options { measured: MeasuredSource::PerRun("measured.json".into()), confidence: Confidence::default() }
+}
+
+#[test]
+fn tables_show_exactly_the_known_errors() {
+    let (_tmp, out) = simulated();
+    let mut scatter: Vec<Vec<f64>> = vec![vec![], vec![]];
+    let mut mtpm_by_hand: Vec<Vec<f64>> = vec![vec![], vec![]];
+    let turn = rotation_xyz_deg([0.0, 0.0, 0.5]);
+    for (k, (dir, truth)) in truths(&out).iter().enumerate() {
+        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap()).unwrap();
+        let level = truth.run.noise_level_index as usize;
+        scatter[level].push(0.2 * normal(k as u64));
+        // Each bead moves by (Rz(0.5°) − I)·(x − t): the largest such move is the run's MTPM.
+        let femur = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+        let moves = femur.markers.iter().map(|m| (turn * (m.position_mm - femur.position_mm) - (m.position_mm - femur.position_mm)).length());
+        mtpm_by_hand[level].push(moves.fold(0.0, f64::max));
+    }
+    let report = evaluate(&out, &options()).unwrap_or_else(|e| panic!("{e:?}"));
+    assert_eq!(report.runs_scored, 40);
+    assert!(report.excluded.is_empty(), "{:?}", report.excluded);
+    for level in 0..2 {
+        // Detector 1: +0.10 mm along s, exactly, and nothing else.
+        let det1 = table(&report, "detector-det1");
+        let s = cell(det1, level, "position", "s");
+        assert_eq!(s.n, 20);
+        assert!((s.trueness - 0.10).abs() < 1e-9 && s.precision < 1e-9, "{s:?}");
+        assert_eq!(s.significance, Significance::Positive);
+        for c in ["r", "c"] {
+            assert!(cell(det1, level, "position", c).trueness.abs() < 1e-9);
+        }
+        // The femur: +0.5° about z (γ), nothing else.
+        let femur = table(&report, "phantom-femur");
+        let g = cell(femur, level, "orientation", "γ");
+        assert!((g.trueness - 0.5).abs() < 1e-9 && g.precision < 1e-9, "{g:?}");
+        assert!(cell(femur, level, "orientation", "α").trueness.abs() < 1e-9);
+        assert!(cell(femur, level, "position", "x").trueness.abs() < 1e-9);
+        // Tube 2: the scatter's own mean and τ·s/√N, by hand.
+        let v = &scatter[level];
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let r = cell(table(&report, "sources"), level, "tube2", "r");
+        assert!((r.trueness - mean).abs() < 1e-9, "{} vs {mean}", r.trueness);
+        assert!((r.precision - 1.729133 * sd / n.sqrt()).abs() < 1e-6, "{} vs {}", r.precision, 1.729133 * sd / n.sqrt());
+        assert!((0.1..0.3).contains(&sd), "scatter SD {sd}");
+        assert!(cell(table(&report, "sources"), level, "tube2", "s").trueness.abs() < 1e-9);
+        // MTPM over the femur's beads, by hand.
+        let mtpm = cell(report.mtpm.as_ref().unwrap(), level, "femur", "MTPM");
+        let want = mtpm_by_hand[level].iter().sum::<f64>() / 20.0;
+        assert!((mtpm.trueness - want).abs() < 1e-9 && want > 0.1, "{mtpm:?} vs {want}");
+    }
+    // The group analysis of det1 s: every group identical → no between-level variance.
+    let a = report.group_analyses.iter().find(|g| g.table == "detector-det1" && g.parameter == "s").unwrap();
+    assert!(a.analysis.s_l.abs() < 1e-9);
+}
+
+#[test]
+fn missing_runs_are_excluded_and_n_follows() {
+    let (_tmp, out) = simulated();
+    for (k, (dir, truth)) in truths(&out).iter().enumerate() {
+        // Level 1 loses 5 runs; one run of level 0 omits detector det2.
+        if truth.run.noise_level_index == 1 && truth.run.run_index < 5 {
+            continue;
+        }
+        let mut m = measured_with_known_errors(truth, k);
+        if truth.run.id == "n0-r03" {
+            m.detectors.retain(|d| d.id != "det2");
+        }
+        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    }
+    let report = evaluate(&out, &options()).unwrap();
+    assert_eq!(report.runs_scored, 35);
+    assert_eq!(report.excluded.iter().filter(|e| e.reason.contains("no measurement")).count(), 5);
+    assert!(report.excluded.iter().any(|e| e.run == "n0-r03" && e.reason.contains("detector det2")));
+    let s = cell(table(&report, "detector-det1"), 1, "position", "s");
+    assert_eq!(s.n, 15);
+    assert!((s.tau - 1.761310).abs() < 1e-5, "τ for N = 15 is t(0.95; 14) = 1.7613, got {}", s.tau);
+    assert_eq!(cell(table(&report, "detector-det2"), 0, "position", "s").n, 19);
+}
+
+#[test]
+fn a_csv_long_table_gives_the_same_report_as_json_files() {
+    let (tmp, out) = simulated();
+    let mut csv = String::from("run,kind,id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
+    for (k, (dir, truth)) in truths(&out).iter().enumerate() {
+        let m = measured_with_known_errors(truth, k);
+        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+        for s in &m.sources {
+            let p = s.position_mm;
+            csv += &format!("{},source,{},{},{},{},,,,\n", m.run, s.id, p[0], p[1], p[2]);
+        }
+        for (kind, list) in [("detector", &m.detectors), ("phantom", &m.phantoms)] {
+            for e in list {
+                let r = e.rotation.unwrap();
+                let mat = DMat3::from_cols(DVec3::from_array(r[0]), DVec3::from_array(r[1]), DVec3::from_array(r[2])).transpose();
+                let q = glam::DQuat::from_mat3(&mat);
+                let p = e.position_mm;
+                csv += &format!("{},{kind},{},{},{},{},{},{},{},{}\n", m.run, e.id, p[0], p[1], p[2], q.w, q.x, q.y, q.z);
+            }
+        }
+    }
+    let file = tmp.path().join("results.csv");
+    std::fs::write(&file, csv).unwrap();
+    let from_json = evaluate(&out, &options()).unwrap();
+    let from_csv = evaluate(&out, &Options { measured: MeasuredSource::Csv(file), confidence: Confidence::default() }).unwrap();
+    for (a, b) in from_json.tables.iter().zip(&from_csv.tables) {
+        for (ra, rb) in a.rows.iter().zip(&b.rows) {
+            for (ca, cb) in ra.cells.iter().zip(&rb.cells) {
+                let (ca, cb) = (ca.as_ref().unwrap(), cb.as_ref().unwrap());
+                assert!((ca.trueness - cb.trueness).abs() < 1e-9 && (ca.precision - cb.precision).abs() < 1e-9, "{}", a.id);
+            }
+        }
+    }
+}
+
