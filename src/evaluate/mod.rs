@@ -3,3 +3,4 @@
 pub mod iso5725;
 pub mod stats;
 pub mod table;
+pub mod report;
