@@ -8,6 +8,7 @@
 mod assemble;
 pub mod input;
 pub mod iso5725;
+pub mod report;
 pub mod residual;
 pub mod rotation;
 pub mod stats;

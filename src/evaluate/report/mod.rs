@@ -1,0 +1,254 @@
+//! Writers of the evaluation [`Report`]: Markdown, CSV, LaTeX and HTML. Every writer is a pure
+//! function from the report to text; [`write_reports`] puts them on disk.
+//!
+//! Conventions shared by every format:
+//! - Numbers: two significant digits ([`format_number`]); noise levels as percentages
+//!   ([`format_noise`]). CSV alone prints full precision.
+//! - A cell reads "T ± P". Where P is undefined (N < 2) it reads "T (N=1)".
+//! - N: each row has a usual N, the most frequent N of its cells (Markdown and HTML print it in an
+//!   "N" column, LaTeX in the caption). A cell whose N differs from its row's usual N carries its
+//!   own "(N=k)".
+//! - Significant cells (T ± P excludes zero) are marked ▲ (positive bias, the paper's red) or ▼
+//!   (negative, the paper's blue), in bold or on a coloured background.
+
+mod csv;
+mod html;
+mod iso;
+mod latex;
+mod markdown;
+mod number;
+mod svg;
+#[cfg(test)]
+mod fixture;
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+pub use self::csv::{csv, csv_iso5725};
+pub use self::html::html;
+pub use self::latex::latex;
+pub use self::markdown::markdown;
+pub use self::number::{format_noise, format_number, unicode_minus};
+
+use super::stats::{Cell, Confidence, Sided, Significance};
+use super::table::{Column, ColumnGroup, Report, Row, Table};
+
+/// A report format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// GitHub-flavoured Markdown (`report.md`).
+    Markdown,
+    /// One long CSV table of every cell at full precision (`report.csv`, plus `iso5725.csv`).
+    Csv,
+    /// LaTeX table fragments in the paper's style (`report.tex`).
+    Latex,
+    /// One self-contained HTML file with tables and plots (`report.html`).
+    Html,
+}
+
+impl Format {
+    /// Every format, in the order [`write_reports`] writes them when asked for all.
+    pub const ALL: [Format; 4] = [Format::Markdown, Format::Csv, Format::Latex, Format::Html];
+
+    /// File extension without the dot: `md`, `csv`, `tex`, `html`.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Markdown => "md",
+            Format::Csv => "csv",
+            Format::Latex => "tex",
+            Format::Html => "html",
+        }
+    }
+}
+
+/// The error of parsing a [`Format`] name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown report format '{0}'; valid formats: md (or markdown), csv, tex (or latex), html")]
+pub struct ParseFormatError(pub String);
+
+impl FromStr for Format {
+    type Err = ParseFormatError;
+
+    /// Accepts `md`, `markdown`, `csv`, `tex`, `latex`, `html`, in any case.
+    fn from_str(s: &str) -> Result<Format, ParseFormatError> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "md" | "markdown" => Ok(Format::Markdown),
+            "csv" => Ok(Format::Csv),
+            "tex" | "latex" => Ok(Format::Latex),
+            "html" => Ok(Format::Html),
+            _ => Err(ParseFormatError(s.to_string())),
+        }
+    }
+}
+
+/// Renders `report` in `format` (for CSV: the cells table; see [`csv_iso5725`] for the rest).
+pub fn render(report: &Report, format: Format) -> String {
+    match format {
+        Format::Markdown => markdown(report),
+        Format::Csv => csv(report),
+        Format::Latex => latex(report),
+        Format::Html => html(report),
+    }
+}
+
+/// Writes `report.<ext>` into `dir` (created if missing) for each of `formats` (duplicates are
+/// written once), and `iso5725.csv` beside `report.csv` when CSV is chosen. Every file is written
+/// atomically. Returns the paths written, in order.
+pub fn write_reports(report: &Report, dir: &Path, formats: &[Format]) -> std::io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)?;
+    let mut written = Vec::new();
+    let mut done = Vec::new();
+    for &format in formats {
+        if done.contains(&format) {
+            continue;
+        }
+        done.push(format);
+        let path = dir.join(format!("report.{}", format.extension()));
+        crate::output::atomic::write_atomic(&path, render(report, format).as_bytes())?;
+        written.push(path);
+        if format == Format::Csv {
+            let path = dir.join("iso5725.csv");
+            crate::output::atomic::write_atomic(&path, csv_iso5725(report).as_bytes())?;
+            written.push(path);
+        }
+    }
+    Ok(written)
+}
+
+/// The columns of `table`, left to right, each with its group.
+pub(crate) fn columns(table: &Table) -> impl Iterator<Item = (&ColumnGroup, &Column)> {
+    table.groups.iter().flat_map(|g| g.columns.iter().map(move |c| (g, c)))
+}
+
+/// The most frequent N among the row's cells (ties: the larger); `None` for a row without cells.
+pub(crate) fn usual_n(row: &Row) -> Option<usize> {
+    let ns: Vec<usize> = row.cells.iter().flatten().map(|c| c.n).collect();
+    ns.iter().copied().max_by_key(|&n| (ns.iter().filter(|&&m| m == n).count(), n))
+}
+
+/// The "(N=k)" note a cell carries: when its precision is undefined or its N is not the row's.
+pub(crate) fn n_note(cell: &Cell, usual: Option<usize>) -> Option<String> {
+    (cell.precision.is_nan() || Some(cell.n) != usual).then(|| format!("(N={})", cell.n))
+}
+
+/// "T ± P" (or "T" alone where P is undefined) with ASCII minus signs and `pm` between.
+pub(crate) fn trueness_precision(cell: &Cell, pm: &str) -> String {
+    if cell.precision.is_nan() {
+        format_number(cell.trueness)
+    } else {
+        format!("{}{pm}{}", format_number(cell.trueness), format_number(cell.precision))
+    }
+}
+
+/// The per-measurement cell of the "Beyond the paper" section: "s (±1.96·s)".
+pub(crate) fn sd_limits(cell: &Cell) -> String {
+    if cell.sd.is_nan() {
+        "n/a".into()
+    } else {
+        format!("{} (±{})", format_number(cell.sd), format_number(cell.limits_95()))
+    }
+}
+
+/// The mark of a significant cell: ▲ positive, ▼ negative, nothing otherwise.
+pub(crate) fn mark(significance: Significance) -> &'static str {
+    match significance {
+        Significance::Positive => "▲",
+        Significance::Negative => "▼",
+        Significance::None => "",
+    }
+}
+
+/// τ's confidence in words: "one-sided 95 % (τ = t(0.95; N−1))".
+pub(crate) fn confidence_text(c: &Confidence) -> String {
+    let (sided, p) = match c.sided {
+        Sided::One => ("one-sided", c.level),
+        Sided::Two => ("two-sided", (1.0 + c.level) / 2.0),
+    };
+    format!("{sided} {} % (τ = t({}; N−1))", number::trimmed(c.level * 100.0, 4), number::trimmed(p, 6))
+}
+
+/// The legend of significance marks, in words.
+pub(crate) const LEGEND: &str = "▲ significant positive bias (T − P > 0, the paper's red); \
+▼ significant negative bias (T + P < 0, the paper's blue); unmarked: the interval T ± P contains zero.";
+
+/// The note on N, in words.
+pub(crate) const N_LEGEND: &str = "N: runs per noise level; a cell with another N shows its own \
+\"(N=k)\", and a cell with N = 1 has no precision.";
+
+/// Text of a "Beyond the paper" table cell.
+pub(crate) type CellText = fn(&Cell) -> String;
+
+/// The two "Beyond the paper" views of every table: (heading, explanation, cell text).
+pub(crate) const BEYOND: [(&str, &str, CellText); 2] = [
+    (
+        "Per-measurement precision",
+        "Each cell: the sample standard deviation s of one measurement, and in parentheses the \
+per-measurement 95 % limits ±1.96·s that RSA guidelines report.",
+        sd_limits,
+    ),
+    ("RMS error", "Each cell: the root mean square of the residuals, √(mean Δ²).", |c| format_number(c.rms)),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_parse_and_name_their_extensions() {
+        for (name, f) in [("md", Format::Markdown), ("Markdown", Format::Markdown), ("csv", Format::Csv), ("tex", Format::Latex), ("LaTeX", Format::Latex), ("html", Format::Html)] {
+            assert_eq!(name.parse::<Format>().unwrap(), f);
+        }
+        let err = "pdf".parse::<Format>().unwrap_err().to_string();
+        assert!(err.contains("'pdf'") && err.contains("md") && err.contains("csv") && err.contains("tex") && err.contains("html"), "{err}");
+        let exts: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
+        assert_eq!(exts, ["md", "csv", "tex", "html"]);
+    }
+
+    #[test]
+    fn writes_one_file_per_format_and_the_iso_csv() {
+        let r = fixture::report();
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("eval").join("reports");
+        let paths = write_reports(&r, &dir, &[Format::Html, Format::Csv, Format::Html]).unwrap();
+        assert_eq!(paths, [dir.join("report.html"), dir.join("report.csv"), dir.join("iso5725.csv")]);
+        assert_eq!(std::fs::read_to_string(&paths[0]).unwrap(), html(&r));
+        assert_eq!(std::fs::read_to_string(&paths[2]).unwrap(), csv_iso5725(&r));
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 3);
+        // For looking at the output by hand: RSASIM_REPORT_SAMPLE=/some/dir cargo test --lib report
+        if let Ok(sample) = std::env::var("RSASIM_REPORT_SAMPLE") {
+            write_reports(&r, Path::new(&sample), &Format::ALL).unwrap();
+        }
+    }
+
+    #[test]
+    fn usual_n_and_notes() {
+        let r = fixture::report();
+        let row = &r.tables[1].rows[0];
+        assert_eq!(usual_n(row), Some(5));
+        let cells: Vec<&Cell> = row.cells.iter().flatten().collect();
+        assert_eq!(n_note(cells[0], Some(5)), None);
+        assert_eq!(n_note(cells[1], Some(5)).as_deref(), Some("(N=4)"));
+        assert_eq!(confidence_text(&Confidence { level: 0.95, sided: Sided::Two }), "two-sided 95 % (τ = t(0.975; N−1))");
+    }
+
+    #[test]
+    fn an_mtpm_table_appears_in_every_format() {
+        let mut r = fixture::report();
+        let mut mtpm = r.tables[1].clone();
+        mtpm.id = "mtpm".into();
+        mtpm.caption = "MTPM of model femur".into();
+        mtpm.groups.truncate(1);
+        mtpm.groups[0].label = "femur".into();
+        mtpm.groups[0].columns = vec![fixture::column("MTPM", "\\mathrm{MTPM}", "mm")];
+        for row in &mut mtpm.rows {
+            row.cells.truncate(1);
+        }
+        r.mtpm = Some(mtpm);
+        assert!(markdown(&r).contains("| Noise | N | femur: MTPM (mm) |"));
+        assert!(latex(&r).contains("\\label{tab:mtpm}"));
+        assert_eq!(csv(&r).lines().filter(|l| l.starts_with("mtpm,femur,MTPM,mm,")).count(), 2);
+        let page = html(&r);
+        assert_eq!(page.matches("<svg").count(), fixture::parameters(&r));
+        assert!(page.contains("femur · MTPM"));
+    }
+}

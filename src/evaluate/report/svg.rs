@@ -1,0 +1,180 @@
+//! Hand-written inline SVG plots of trueness ± precision against noise level. Deterministic:
+//! coordinates are printed with two decimals, nothing depends on time or randomness.
+
+use std::fmt::Write;
+
+use super::html::esc;
+use super::{format_noise, unicode_minus};
+use crate::evaluate::stats::{Cell, Significance};
+
+const W: f64 = 330.0;
+const H: f64 = 230.0;
+const LEFT: f64 = 66.0;
+const RIGHT: f64 = 14.0;
+const TOP: f64 = 28.0;
+const BOTTOM: f64 = 48.0;
+
+/// Colours of significant points and bars (the paper's red and blue, darkened for lines).
+const RED: &str = "#b2182b";
+const BLUE: &str = "#2155a8";
+const BLACK: &str = "#222222";
+
+/// A plot of one parameter: points at (noise level, T) with error bars ±P, a dashed zero line,
+/// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
+/// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
+pub(crate) fn plot(title: &str, unit: &str, levels: &[f64], cells: &[Option<&Cell>]) -> String {
+    let points: Vec<(f64, &Cell)> = levels.iter().zip(cells).filter_map(|(&x, c)| c.map(|c| (x, c))).collect();
+    let (x0, x1) = x_domain(levels);
+    let (ticks, y0, y1) = y_ticks(&points);
+    let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * (W - LEFT - RIGHT);
+    let py = |y: f64| TOP + (y1 - y) / (y1 - y0) * (H - TOP - BOTTOM);
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" \
+role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
+        esc(&format!("{title}: trueness ± precision ({unit}) against noise level"))
+    );
+    let _ = write!(s, "<text x=\"{:.2}\" y=\"16\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>", W / 2.0, esc(title));
+    let _ = write!(
+        s,
+        "<rect x=\"{LEFT:.2}\" y=\"{TOP:.2}\" width=\"{:.2}\" height=\"{:.2}\" fill=\"none\" stroke=\"#999999\"/>",
+        W - LEFT - RIGHT,
+        H - TOP - BOTTOM
+    );
+    for (value, label) in &ticks {
+        let y = py(*value);
+        let _ = write!(s, "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{LEFT:.2}\" y2=\"{y:.2}\" stroke=\"#999999\"/>", LEFT - 4.0);
+        let _ = write!(s, "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"end\">{}</text>", LEFT - 6.0, y + 4.0, esc(label));
+    }
+    let mut seen: Vec<f64> = Vec::new();
+    for &level in levels {
+        if seen.contains(&level) {
+            continue;
+        }
+        seen.push(level);
+        let x = px(level);
+        let base = H - BOTTOM;
+        let _ = write!(s, "<line x1=\"{x:.2}\" y1=\"{base:.2}\" x2=\"{x:.2}\" y2=\"{:.2}\" stroke=\"#999999\"/>", base + 4.0);
+        let _ = write!(s, "<text x=\"{x:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>", base + 16.0, esc(&format_noise(level)));
+    }
+    let zero = py(0.0);
+    let _ = write!(
+        s,
+        "<line x1=\"{LEFT:.2}\" y1=\"{zero:.2}\" x2=\"{:.2}\" y2=\"{zero:.2}\" stroke=\"#555555\" stroke-dasharray=\"4 3\"/>",
+        W - RIGHT
+    );
+    for (level, c) in &points {
+        point(&mut s, px(*level), c, &py);
+    }
+    let _ = write!(s, "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">Noise level (% of I<tspan baseline-shift=\"sub\" font-size=\"8\">max</tspan>)</text>", LEFT + (W - LEFT - RIGHT) / 2.0, H - 10.0);
+    let (cx, cy) = (14.0, TOP + (H - TOP - BOTTOM) / 2.0);
+    let _ = write!(
+        s,
+        "<text x=\"{cx:.2}\" y=\"{cy:.2}\" text-anchor=\"middle\" transform=\"rotate(-90 {cx:.2} {cy:.2})\">T ± P ({})</text>",
+        esc(unit)
+    );
+    s.push_str("</svg>");
+    s
+}
+
+/// One point with its error bar.
+fn point(s: &mut String, x: f64, c: &Cell, py: &dyn Fn(f64) -> f64) {
+    let color = match c.significance {
+        Significance::Positive => RED,
+        Significance::Negative => BLUE,
+        Significance::None => BLACK,
+    };
+    if c.precision.is_finite() {
+        let (lo, hi) = (py(c.trueness - c.precision), py(c.trueness + c.precision));
+        let _ = write!(s, "<line x1=\"{x:.2}\" y1=\"{lo:.2}\" x2=\"{x:.2}\" y2=\"{hi:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>");
+        for y in [lo, hi] {
+            let _ = write!(s, "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{:.2}\" y2=\"{y:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>", x - 5.0, x + 5.0);
+        }
+    }
+    let y = py(c.trueness);
+    let shape = match c.significance {
+        Significance::Positive => format!("<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"", y - 5.0, x + 5.0, y + 4.0, x - 5.0, y + 4.0),
+        Significance::Negative => format!("<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"", y + 5.0, x + 5.0, y - 4.0, x - 5.0, y - 4.0),
+        Significance::None => format!("<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"3.5\""),
+    };
+    let _ = write!(s, "{shape} fill=\"{color}\"><title>{}</title></", esc(&tooltip(c)));
+    s.push_str(if c.significance == Significance::None { "circle>" } else { "path>" });
+}
+
+/// The hover text of a point: "T ± P (N=k)".
+fn tooltip(c: &Cell) -> String {
+    unicode_minus(&format!("{} (N={})", super::trueness_precision(c, " ± "), c.n))
+}
+
+/// The x range: the noise levels, padded by 8 % (±0.1 around a single level).
+fn x_domain(levels: &[f64]) -> (f64, f64) {
+    let lo = levels.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = levels.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !lo.is_finite() || !hi.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = if hi > lo { 0.08 * (hi - lo) } else { 0.1 };
+    (lo - pad, hi + pad)
+}
+
+/// "Nice" y ticks (steps of 1, 2 or 5 × 10^k) covering zero and every T ± P; returns the ticks
+/// with their labels and the axis range.
+fn y_ticks(points: &[(f64, &Cell)]) -> (Vec<(f64, String)>, f64, f64) {
+    let mut lo: f64 = 0.0;
+    let mut hi: f64 = 0.0;
+    for (_, c) in points {
+        let p = if c.precision.is_finite() { c.precision } else { 0.0 };
+        for v in [c.trueness - p, c.trueness + p] {
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    if hi - lo <= 0.0 {
+        (lo, hi) = (-1.0, 1.0);
+    }
+    // Headroom, so that no point or bar end sits on the frame.
+    let pad = 0.05 * (hi - lo);
+    (lo, hi) = (lo - pad, hi + pad);
+    let raw = (hi - lo) / 4.0;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0].into_iter().map(|m| m * mag).find(|&s| s >= raw).unwrap_or(10.0 * mag);
+    let (i0, i1) = ((lo / step).floor() as i64, (hi / step).ceil() as i64);
+    let decimals = (-step.log10().floor()).max(0.0) as usize;
+    let ticks = (i0..=i1)
+        .map(|i| {
+            let v = i as f64 * step;
+            let label = if i == 0 { "0".to_string() } else { unicode_minus(&format!("{v:.decimals$}")) };
+            (v, label)
+        })
+        .collect();
+    (ticks, i0 as f64 * step, i1 as f64 * step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evaluate::stats::Confidence;
+
+    #[test]
+    fn ticks_are_nice_and_cover_the_bars() {
+        let c = Cell::from_residuals(&[-0.5, -0.6, -0.4], &Confidence::default());
+        let (ticks, lo, hi) = y_ticks(&[(0.0, &c)]);
+        assert!(lo <= c.trueness - c.precision && hi >= 0.0);
+        let labels: Vec<&str> = ticks.iter().map(|(_, l)| l.as_str()).collect();
+        assert_eq!(labels, ["−0.8", "−0.6", "−0.4", "−0.2", "0", "0.2"]);
+    }
+
+    #[test]
+    fn a_plot_is_deterministic_and_marks_significance() {
+        let pos = Cell::from_residuals(&[1.0, 1.1, 0.9], &Confidence::default());
+        let one = Cell::from_residuals(&[0.2], &Confidence::default());
+        let svg = plot("tube1 · x_r", "mm", &[0.0, 0.225, 0.45], &[Some(&pos), None, Some(&one)]);
+        assert_eq!(svg, plot("tube1 · x_r", "mm", &[0.0, 0.225, 0.45], &[Some(&pos), None, Some(&one)]));
+        assert_eq!(svg.matches("<path").count(), 1);
+        assert_eq!(svg.matches("<circle").count(), 1);
+        assert!(svg.contains(">22.5%</text>") && svg.contains("T ± P (mm)"));
+    }
+}
