@@ -46,6 +46,30 @@ pub enum Command {
         /// The scenario file to expand.
         scenario: PathBuf,
     },
+    /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
+    /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.
+    Evaluate {
+        /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/).
+        out: PathBuf,
+        /// File name of the results in every run folder (schemas/measured.schema.json).
+        #[arg(long, default_value = "measured.json", value_name = "FILE_NAME", conflicts_with = "csv")]
+        measured: String,
+        /// Read every run's results from one CSV long table instead (columns in the README).
+        #[arg(long, value_name = "FILE")]
+        csv: Option<PathBuf>,
+        /// Confidence level of τ, in (0, 1).
+        #[arg(long, default_value_t = 0.95, value_name = "LEVEL")]
+        confidence: f64,
+        /// One- or two-sided τ; the paper's τ = 1.73 at N = 20 is one-sided 95 %.
+        #[arg(long, default_value = "one", value_parser = ["one", "two"])]
+        sided: String,
+        /// Report formats, comma-separated: md, csv, tex, html.
+        #[arg(long, default_value = "md,csv,tex,html", value_delimiter = ',', value_name = "LIST")]
+        format: Vec<String>,
+        /// Folder the reports are written to. Default: OUT/report.
+        #[arg(long, value_name = "DIR")]
+        report: Option<PathBuf>,
+    },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {
         /// Which schema to print.

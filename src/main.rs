@@ -28,6 +28,9 @@ fn main() -> ExitCode {
             println!("{}", serde_json::to_string_pretty(&plan.runs).expect("runs serialise"));
         }),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
+        Some(Command::Evaluate { out, measured, csv, confidence, sided, format, report }) => {
+            evaluate(&out, measured, csv, confidence, &sided, &format, report)
+        }
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
             prepare(&scenario).and_then(|plan| run(&plan, cli.run.out, cli.run.force))
@@ -46,11 +49,11 @@ fn prepare(path: &std::path::Path) -> Result<Plan, u8> {
             plan.warnings.iter().for_each(|w| eprintln!("{w}"));
             Ok(plan)
         }
-        Err(errors) => Err(report(&errors)),
+        Err(errors) => Err(report_errors(&errors)),
     }
 }
 
-fn report(errors: &[Diagnostic]) -> u8 {
+fn report_errors(errors: &[Diagnostic]) -> u8 {
     errors.iter().for_each(|e| eprintln!("{e}\n"));
     eprintln!("rsasim: {} error(s); nothing was written", errors.len());
     2
@@ -79,6 +82,49 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
         summary.image_files,
         start.elapsed().as_secs_f64(),
         summary.out_dir.display()
+    );
+    Ok(())
+}
+
+fn evaluate(
+    out: &std::path::Path,
+    measured: String,
+    csv: Option<std::path::PathBuf>,
+    confidence: f64,
+    sided: &str,
+    formats: &[String],
+    report_dir: Option<std::path::PathBuf>,
+) -> Result<(), u8> {
+    use rsasim::evaluate::{self, MeasuredSource, Options, report, stats};
+    if !(confidence > 0.0 && confidence < 1.0) {
+        eprintln!("error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95");
+        return Err(2);
+    }
+    let formats: Vec<report::Format> = formats.iter().map(|f| f.parse()).collect::<Result<_, report::ParseFormatError>>().map_err(|e| {
+        eprintln!("error: --format: {e}");
+        2
+    })?;
+    let sided = if sided == "two" { stats::Sided::Two } else { stats::Sided::One };
+    let options = Options {
+        measured: csv.map_or(MeasuredSource::PerRun(measured), MeasuredSource::Csv),
+        confidence: stats::Confidence { level: confidence, sided },
+    };
+    let start = Instant::now();
+    let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
+    let dir = report_dir.unwrap_or_else(|| out.join("report"));
+    let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
+        eprintln!("error: writing the reports into {} failed: {e}", dir.display());
+        1
+    })?;
+    for e in &result.excluded {
+        eprintln!("excluded: {}: {}", e.run, e.reason);
+    }
+    eprintln!(
+        "rsasim evaluate: {} runs scored, {} exclusion(s), in {:.2} s -> {}",
+        result.runs_scored,
+        result.excluded.len(),
+        start.elapsed().as_secs_f64(),
+        written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
     );
     Ok(())
 }

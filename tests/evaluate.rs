@@ -5,7 +5,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::run_scenario;
+use common::{rsasim, run_scenario};
 use rsasim::evaluate::stats::{Cell, Confidence, Significance};
 use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
@@ -220,3 +220,84 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
     }
 }
 
+/// (what is broken, how, expected message part, expected field or line marker)
+#[test]
+fn bad_results_are_named_by_file_line_and_field() {
+    let (tmp, out) = simulated();
+    let all = truths(&out);
+    let (dir, truth) = &all[0];
+    let good = measured_with_known_errors(truth, 0);
+    let write = |m: &Measured| std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(m).unwrap()).unwrap();
+    let run_json = |expect: &[&str]| {
+        let o = rsasim(&["evaluate", out.to_str().unwrap()], &[]);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{stderr}");
+        for e in expect {
+            assert!(stderr.contains(e), "expected `{e}` in:\n{stderr}");
+        }
+    };
+    // A rotation that is not orthonormal: the deviation is named.
+    let mut m = good.clone();
+    m.detectors[1].rotation.as_mut().unwrap()[0][0] += 0.01;
+    write(&m);
+    run_json(&["measured.json:50:", "`detectors[1].rotation`", "not orthonormal: max |RᵀR − I| = 9.999e-3"]);
+    // An unknown entity id.
+    let mut m = good.clone();
+    m.detectors[0].id = "det9".into();
+    write(&m);
+    run_json(&["`detectors[0].id`", "no detector has the id `det9`", "valid detector ids: det1, det2"]);
+    // A run id that does not match its folder.
+    let mut m = good.clone();
+    m.run = "n9-r99".into();
+    write(&m);
+    run_json(&["`run`", "n9-r99"]);
+    // Malformed JSON: line and column.
+    std::fs::write(dir.join("measured.json"), b"{\n  \"format\": \"rsasim-measured/1\",\n  \"run\": 3\n}").unwrap();
+    run_json(&["measured.json:3:", "invalid JSON"]);
+    std::fs::remove_file(dir.join("measured.json")).unwrap();
+
+    // CSV: a NaN, an unknown run, a bad row, a missing file.
+    let csv = |body: &str, expect: &[&str]| {
+        let file = tmp.path().join("r.csv");
+        std::fs::write(&file, format!("run,kind,id,x_mm,y_mm,z_mm\n{body}")).unwrap();
+        let o = rsasim(&["evaluate", out.to_str().unwrap(), "--csv", file.to_str().unwrap()], &[]);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{stderr}");
+        for e in expect {
+            assert!(stderr.contains(e), "expected `{e}` in:\n{stderr}");
+        }
+    };
+    csv("n0-r00,source,tube1,1,2,NaN\n", &["r.csv:2:", "`z_mm`", "not a finite number"]);
+    csv("n0-r00,source,tube1,1,2,3\nn7-r00,source,tube1,1,2,3\n", &["r.csv:3:", "`run`", "no run `n7-r00`"]);
+    csv("n0-r00,source,tube1,1,2\n", &["r.csv:2:", "malformed row"]);
+    csv("n0-r00,camera,tube1,1,2,3\n", &["r.csv:2:", "`kind`", "unknown kind `camera`"]);
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--csv", "/nonexistent/r.csv"], &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/r.csv"));
+}
+
+#[test]
+fn the_command_writes_every_report_format() {
+    let (tmp, out) = simulated();
+    for (k, (dir, truth)) in truths(&out).iter().enumerate() {
+        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap()).unwrap();
+    }
+    let report = tmp.path().join("rep");
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--report", report.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["report.md", "report.csv", "report.tex", "report.html", "iso5725.csv"] {
+        assert!(report.join(f).is_file(), "{f} missing");
+    }
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    // det1's +0.10 mm along s is a significant positive cell: "0.10 ± 0" marked ▲.
+    assert!(md.contains("**0.10 ± 0** ▲"), "{md}");
+    let tex = std::fs::read_to_string(report.join("report.tex")).unwrap();
+    assert!(tex.contains(r"\cellcolor{red!25}"));
+    // Default folder, chosen formats, two-sided τ.
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "md,html", "--sided", "two"], &[]);
+    assert!(o.status.success());
+    assert!(out.join("report/report.html").is_file() && !out.join("report/report.tex").exists());
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "pdf"], &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("valid formats"));
+}

@@ -28,9 +28,19 @@ impl Samples {
 
     fn push(&mut self, first_column: usize, level: usize, values: &[f64]) {
         for (k, v) in values.iter().enumerate() {
-            self.values[first_column + k][level].push(*v);
+            self.values[first_column + k][level].push(quantise(*v));
         }
     }
+}
+
+/// Numerical resolution of residuals, in mm or degrees: 1e-12, far below anything physical.
+/// Residuals are rounded to it before any statistic, so an exact reconstruction scores exactly
+/// zero instead of double-precision round-off (≈1e-16) that a significance test would flag.
+pub const RESOLUTION: f64 = 1e-12;
+
+/// `x` rounded to a multiple of [`RESOLUTION`].
+pub fn quantise(x: f64) -> f64 {
+    (x / RESOLUTION).round() * RESOLUTION
 }
 
 fn col(label: &str, latex: &str, unit: &str) -> Column {
@@ -190,7 +200,11 @@ pub fn assemble(
             .enumerate()
             .map(|(l, &(_, noise_level))| Row {
                 noise_level,
-                cells: s.values.iter().map(|c| (!c[l].is_empty()).then(|| Cell::from_residuals(&c[l], confidence))).collect(),
+                cells: s
+                    .values
+                    .iter()
+                    .map(|c| (!c[l].is_empty()).then(|| Cell::from_residuals(&c[l], confidence).at_resolution(RESOLUTION)))
+                    .collect(),
             })
             .collect();
         for (k, c) in s.values.iter().enumerate() {
@@ -210,4 +224,17 @@ pub fn assemble(
     tables.extend(phantoms.into_iter().map(|s| finish(s, &mut analyses)));
     let mtpm_table = (!mtpm_models.is_empty()).then(|| finish(mtpm_samples, &mut analyses));
     (tables, mtpm_table, analyses, excluded, scored)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_off_is_quantised_away_but_real_residuals_are_kept() {
+        assert_eq!(quantise(-3.3e-16), 0.0);
+        assert_eq!(quantise(0.1 + 1e-17), quantise(0.1));
+        assert!((quantise(0.123456789) - 0.123456789).abs() < 1e-12);
+        assert!((quantise(-2.5e-9) + 2.5e-9).abs() < 1e-15);
+    }
 }

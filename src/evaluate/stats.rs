@@ -106,6 +106,24 @@ impl Cell {
         Cell { n, trueness: mean, sd, tau, precision, rms, significance }
     }
 
+    /// The cell with T, s, P and RMS rounded to multiples of `resolution` (mm or deg), and its
+    /// significance judged on the rounded values, so arithmetic round-off far below the
+    /// resolution never makes a cell significant.
+    pub fn at_resolution(self, resolution: f64) -> Cell {
+        let q = |x: f64| if x.is_finite() { (x / resolution).round() * resolution } else { x };
+        let (trueness, precision) = (q(self.trueness), q(self.precision));
+        let significance = if precision.is_nan() {
+            Significance::None
+        } else if trueness - precision > 0.0 {
+            Significance::Positive
+        } else if trueness + precision < 0.0 {
+            Significance::Negative
+        } else {
+            Significance::None
+        };
+        Cell { trueness, sd: q(self.sd), precision, rms: q(self.rms), significance, ..self }
+    }
+
     /// Per-measurement 95 % limits as RSA guidelines report them: ±1.96·SD.
     pub fn limits_95(&self) -> f64 {
         1.96 * self.sd
@@ -147,6 +165,12 @@ mod tests {
         assert!((c.rms - 11f64.sqrt()).abs() < 1e-12);
         assert_eq!(c.significance, Significance::Positive);
         assert!((c.limits_95() - 1.96 * 2.5f64.sqrt()).abs() < 1e-12);
+        // Round-off below the resolution is neither precision nor bias.
+        let c = Cell::from_residuals(&[0.1 + 1e-17, 0.1, 0.1 - 1e-17, 1e-16 + 0.1], &Confidence::default()).at_resolution(1e-12);
+        assert_eq!((c.sd, c.precision), (0.0, 0.0));
+        assert_eq!(c.significance, Significance::Positive);
+        let c = Cell::from_residuals(&[-3e-16, -2e-16, -3e-16], &Confidence::default()).at_resolution(1e-12);
+        assert_eq!((c.trueness, c.significance), (0.0, Significance::None));
         let c = Cell::from_residuals(&[-1.0, 0.5, 0.2], &Confidence::default());
         assert_eq!(c.significance, Significance::None);
         let c = Cell::from_residuals(&[-1.0, -1.1, -0.9], &Confidence::default());

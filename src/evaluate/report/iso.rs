@@ -87,11 +87,30 @@ pub(crate) fn fields(g: &GroupAnalysis) -> Vec<Field> {
         ]),
     }
     out.push(f("Noise changes result? (5 %)", "noise_changes_result", Value::Text(verdict(g).into())));
-    // ===== OUTLIER VERDICTS GO HERE =====
-    // When iso5725.rs gains `cochran`/`grubbs: Option<OutlierTest>` and `mandel_h`/`mandel_k`,
-    // push their fields here (e.g. "Cochran", "Grubbs", "Mandel h", "Mandel k"); Markdown, HTML
-    // and iso5725.csv all render this list, so nothing else needs to change.
+    // Outlier checks of ISO 5725-2 §7.3 on the noise-level groups.
+    let tests = [
+        ("Cochran C", "cochran", "Cochran verdict", "cochran_verdict", &a.cochran),
+        ("Grubbs G (means)", "grubbs", "Grubbs verdict", "grubbs_verdict", &a.grubbs),
+    ];
+    for (label, key, verdict_label, verdict_key, test) in tests {
+        out.push(f(label, key, test.as_ref().map_or(Value::None, |t| Value::Num(t.statistic))));
+        out.push(f(verdict_label, verdict_key, test.as_ref().map_or(Value::None, |t| Value::Text(outlier_text(t)))));
+    }
+    let h_max = a.mandel_h.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let k_max = a.mandel_k.iter().filter(|x| x.is_finite()).fold(0.0f64, |m, x| m.max(*x));
+    out.push(f("max |Mandel h|", "mandel_h_max", if a.mandel_h.is_empty() { Value::None } else { Value::Num(h_max) }));
+    out.push(f("max Mandel k", "mandel_k_max", if a.mandel_k.is_empty() { Value::None } else { Value::Num(k_max) }));
     out
+}
+
+/// An outlier test's verdict with the group it points at, e.g. "outlier (level 4)".
+fn outlier_text(t: &crate::evaluate::iso5725::OutlierTest) -> String {
+    use crate::evaluate::iso5725::OutlierVerdict;
+    match t.verdict {
+        OutlierVerdict::Accepted => "accepted".into(),
+        OutlierVerdict::Straggler => format!("straggler (group {})", t.group),
+        OutlierVerdict::Outlier => format!("outlier (group {})", t.group),
+    }
 }
 
 /// "yes", "no" or "not testable": does the noise level change the mean residual at 5 %?
