@@ -157,8 +157,10 @@ fn tables_show_exactly_the_known_errors() {
         assert!((mtpm.trueness - want).abs() < 1e-9 && want > 0.1, "{mtpm:?} vs {want}");
     }
     // The group analysis of det1 s: every group identical → no between-level variance.
-    let a = report.group_analyses.iter().find(|g| g.table == "detector-det1" && g.parameter == "s").unwrap();
+    let a = report.group_analyses.iter().find(|g| g.table == "detector-det1" && g.parameter == "position: s").unwrap();
     assert!(a.analysis.s_l.abs() < 1e-9);
+    // Two sources have r, c, s columns: each parameter is named by its group.
+    assert!(report.group_analyses.iter().any(|g| g.parameter == "tube2 (beamline det2): r"));
 }
 
 #[test]

@@ -194,7 +194,10 @@ pub fn assemble(
     let mut analyses = Vec::new();
     let finish = |s: Samples, analyses: &mut Vec<GroupAnalysis>| -> Table {
         let mut table = s.table;
-        let columns: Vec<Column> = table.groups.iter().flat_map(|g| g.columns.clone()).collect();
+        // Parameters are named with their group ("tube1 (beamline det1): r", "position: s"), so
+        // tables with several groups of the same columns stay unambiguous.
+        let columns: Vec<(String, Column)> =
+            table.groups.iter().flat_map(|g| g.columns.iter().map(move |c| (format!("{}: {}", g.label, c.label), c.clone()))).collect();
         table.rows = levels
             .iter()
             .enumerate()
@@ -211,8 +214,8 @@ pub fn assemble(
             if c.iter().filter(|v| !v.is_empty()).count() >= 2 {
                 analyses.push(GroupAnalysis {
                     table: table.id.clone(),
-                    parameter: columns[k].label.clone(),
-                    unit: columns[k].unit.clone(),
+                    parameter: columns[k].0.clone(),
+                    unit: columns[k].1.unit.clone(),
                     analysis: iso5725::analyse(c),
                 });
             }
