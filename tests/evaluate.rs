@@ -3,9 +3,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use common::{rsasim, run_scenario};
+use common::{rsasim, run_scenario, truths};
 use rsasim::evaluate::stats::{Cell, Confidence, Significance};
 use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
@@ -26,18 +26,6 @@ fn simulated() -> (tempfile::TempDir, PathBuf) {
     (tmp, out)
 }
 
-fn truths(out: &Path) -> Vec<(PathBuf, Truth)> {
-    let mut v: Vec<_> = std::fs::read_dir(out.join("runs"))
-        .unwrap()
-        .map(|e| {
-            let dir = e.unwrap().path();
-            let t: Truth = serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
-            (dir, t)
-        })
-        .collect();
-    v.sort_by(|a, b| a.1.run.id.cmp(&b.1.run.id));
-    v
-}
 
 /// A deterministic standard normal sample per run (Box–Muller over a simple LCG): scatter of known SD.
 fn normal(k: u64) -> f64 {

@@ -2,26 +2,12 @@
 
 mod common;
 
-use std::path::Path;
 
-use common::{read_tiff, run_scenario};
+use common::{read_tiff, run_scenario, truths};
 use rsasim::geometry::{DVec3, DetectorFrame, Pose, rotation_xyz_deg};
-use rsasim::output::Truth;
 use rsasim::phantom::TriMesh;
 use rsasim::trace::{MeshBvh, Object, render_binary};
 
-fn truths(out: &Path) -> Vec<(std::path::PathBuf, Truth)> {
-    let mut v: Vec<_> = std::fs::read_dir(out.join("runs"))
-        .unwrap()
-        .map(|e| {
-            let dir = e.unwrap().path();
-            let truth: Truth = serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
-            (dir, truth)
-        })
-        .collect();
-    v.sort_by(|a, b| a.1.run.id.cmp(&b.1.run.id));
-    v
-}
 
 /// The 8-connected component of covered pixels containing (i, j): its centroid in continuous
 /// pixel coordinates and its pixel count.

@@ -61,6 +61,22 @@ pub enum Significance {
     None,
 }
 
+impl Significance {
+    /// Whether the interval `trueness ± precision` excludes zero, and on which side (none when
+    /// the precision is unknown, N < 2).
+    pub fn of(trueness: f64, precision: f64) -> Significance {
+        if precision.is_nan() {
+            Significance::None
+        } else if trueness - precision > 0.0 {
+            Significance::Positive
+        } else if trueness + precision < 0.0 {
+            Significance::Negative
+        } else {
+            Significance::None
+        }
+    }
+}
+
 /// Summary of the residuals of one parameter at one noise level.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Cell {
@@ -94,16 +110,7 @@ impl Cell {
         };
         let tau = confidence.tau(n).unwrap_or(f64::NAN);
         let precision = tau * sd / (n as f64).sqrt();
-        let significance = if precision.is_nan() {
-            Significance::None
-        } else if mean - precision > 0.0 {
-            Significance::Positive
-        } else if mean + precision < 0.0 {
-            Significance::Negative
-        } else {
-            Significance::None
-        };
-        Cell { n, trueness: mean, sd, tau, precision, rms, significance }
+        Cell { n, trueness: mean, sd, tau, precision, rms, significance: Significance::of(mean, precision) }
     }
 
     /// The cell with T, s, P and RMS rounded to multiples of `resolution` (mm or deg), and its
@@ -112,16 +119,7 @@ impl Cell {
     pub fn at_resolution(self, resolution: f64) -> Cell {
         let q = |x: f64| if x.is_finite() { (x / resolution).round() * resolution } else { x };
         let (trueness, precision) = (q(self.trueness), q(self.precision));
-        let significance = if precision.is_nan() {
-            Significance::None
-        } else if trueness - precision > 0.0 {
-            Significance::Positive
-        } else if trueness + precision < 0.0 {
-            Significance::Negative
-        } else {
-            Significance::None
-        };
-        Cell { trueness, sd: q(self.sd), precision, rms: q(self.rms), significance, ..self }
+        Cell { trueness, sd: q(self.sd), precision, rms: q(self.rms), significance: Significance::of(trueness, precision), ..self }
     }
 
     /// Per-measurement 95 % limits as RSA guidelines report them: ±1.96·SD.

@@ -56,3 +56,17 @@ pub fn read_tiff(path: &Path) -> (u32, u32, Vec<u16>) {
         _ => panic!("{} is not 16-bit", path.display()),
     }
 }
+
+/// Every run folder of an output folder with its `truth.json`, sorted by run id.
+pub fn truths(out: &Path) -> Vec<(PathBuf, rsasim::output::Truth)> {
+    let mut v: Vec<_> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| {
+            let dir = e.unwrap().path();
+            let truth = serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
+            (dir, truth)
+        })
+        .collect();
+    v.sort_by(|a: &(PathBuf, rsasim::output::Truth), b| a.1.run.id.cmp(&b.1.run.id));
+    v
+}
