@@ -9,4 +9,5 @@ pub mod trace;
 pub mod noise;
 pub mod output;
 pub mod evaluate;
+pub mod reconstruct;
 pub mod simulate;

@@ -1,0 +1,1 @@
+//! Scene calibration (in progress on a helper branch).

@@ -1,0 +1,1 @@
+//! Triangulation and rigid-body fits (in progress on a helper branch).
