@@ -49,7 +49,7 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
             .iter()
             .map(|s| {
                 let p = if s.id == "tube2" { s.position_mm + det2.rotation.x_axis * (0.2 * normal(k as u64)) } else { s.position_mm };
-                MeasuredPoint { id: s.id.clone(), position_mm: p.to_array() }
+                MeasuredPoint { id: s.id.clone(), position_mm: p.to_array(), quality: None }
             })
             .collect(),
         detectors: run
@@ -57,7 +57,7 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
             .iter()
             .map(|d| {
                 let p = if d.id == "det1" { d.position_mm + d.rotation.z_axis * 0.10 } else { d.position_mm };
-                MeasuredPose { id: d.id.clone(), position_mm: p.to_array(), rotation: Some(rows(d.rotation)), markers: vec![] }
+                MeasuredPose { id: d.id.clone(), position_mm: p.to_array(), rotation: Some(rows(d.rotation)), markers: vec![], quality: None }
             })
             .collect(),
         phantoms: run
@@ -69,6 +69,7 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
                 position_mm: p.position_mm.to_array(),
                 rotation: Some(rows(rotation_xyz_deg([0.0, 0.0, 0.5]) * p.rotation)),
                 markers: vec![],
+                quality: None,
             })
             .collect(),
     }

@@ -36,6 +36,35 @@ pub struct MeasuredPoint {
     pub id: String,
     /// Position, mm, box frame.
     pub position_mm: [f64; 3],
+    /// How well the software's fit went, if it says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<FitQuality>,
+}
+
+/// Quality figures of a reconstruction, as RSA guidelines ask them to be reported. Every field
+/// is optional; a software reports what it has.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FitQuality {
+    /// Number of beads the fit used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beads_used: Option<usize>,
+    /// Root-mean-square reprojection error of a scene calibration, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reprojection_rms_px: Option<f64>,
+    /// Mean crossing-line error of triangulated beads (the distance between the two views'
+    /// rays), mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crossing_line_error_mm: Option<f64>,
+    /// Mean error of rigid-body fitting (ME), mm; the guideline limit is 0.35 mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_error_mm: Option<f64>,
+    /// Condition number of the bead configuration (CN); the guideline limit is 150.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub condition_number: Option<f64>,
+    /// Guideline limits exceeded, e.g. `"ME > 0.35 mm"`, `"CN > 150"`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub flags: Vec<String>,
 }
 
 /// A reconstructed pose; `rotation` (three rows, columns = local axes in the box frame) may be
@@ -53,4 +82,7 @@ pub struct MeasuredPose {
     /// Reconstructed bead centres, if measured.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub markers: Vec<MeasuredPoint>,
+    /// How well the software's fit went, if it says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<FitQuality>,
 }

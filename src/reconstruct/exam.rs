@@ -1,0 +1,116 @@
+//! What an RSA operator has for an exam, and nothing more: the nominal set-up, the bead tables
+//! and model files of `OUT/phantoms/`, and the images of each run folder.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use crate::diagnostic::Diagnostic;
+use crate::expand::{Run, expand_run};
+use crate::phantom;
+use crate::scenario::{self, PoseRange, PositionRange, Scenario};
+
+/// A bead of a phantom's table (`phantoms/<id>.csv` or `phantoms/<id>-beads.csv`), in the
+/// phantom's own frame (the box frame for the calibration box).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableBead {
+    /// Bead id.
+    pub id: String,
+    /// Plate id (calibration boxes), or empty.
+    pub plate: String,
+    /// Centre, mm.
+    pub position_mm: DVec3,
+    /// Diameter, mm.
+    pub diameter_mm: f64,
+}
+
+/// The set-up as the operator knows it.
+pub struct Setup {
+    /// The scenario as run (`OUT/scenario.toml`).
+    pub scenario: Scenario,
+    /// The nominal geometry: every pose without its random draw, in the box frame.
+    pub nominal: Run,
+    /// Bead tables by phantom id.
+    pub beads: BTreeMap<String, Vec<TableBead>>,
+}
+
+/// Reads `OUT/scenario.toml` and the bead tables of `OUT/phantoms/`.
+pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
+    let loaded = scenario::load(&out.join("scenario.toml"))?;
+    let mut nominal_scenario = loaded.scenario.clone();
+    for s in &mut nominal_scenario.sources {
+        s.randomize = PositionRange::default();
+    }
+    for d in &mut nominal_scenario.detectors {
+        d.randomize = PoseRange::default();
+    }
+    for p in &mut nominal_scenario.phantoms {
+        p.randomize = PoseRange::default();
+    }
+    let models = phantom::build(&loaded)?;
+    let nominal = expand_run(&nominal_scenario, &models, 0, 0.0, 0);
+    let mut beads = BTreeMap::new();
+    for p in &loaded.scenario.phantoms {
+        let name = if p.mesh.is_some() { format!("{}-beads.csv", p.id) } else { format!("{}.csv", p.id) };
+        let file = out.join("phantoms").join(name);
+        if file.exists() {
+            beads.insert(p.id.clone(), read_bead_table(&file).map_err(|d| vec![d])?);
+        }
+    }
+    Ok(Setup { scenario: loaded.scenario, nominal, beads })
+}
+
+/// Reads a bead table: `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.
+pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Diagnostic> {
+    let mut reader = csv::Reader::from_path(file).map_err(|e| Diagnostic::file_error(file, format!("cannot read: {e}")))?;
+    let mut out = Vec::new();
+    for (k, row) in reader.records().enumerate() {
+        let bad = |what: String| {
+            let mut d = Diagnostic::file_error(file, what).with_help("columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm");
+            d.line_col = Some((k + 2, 1));
+            d
+        };
+        let row = row.map_err(|e| bad(format!("malformed row: {e}")))?;
+        let num = |i: usize| row.get(i).and_then(|v| v.parse::<f64>().ok()).ok_or_else(|| bad(format!("column {} is not a number", i + 1)));
+        out.push(TableBead {
+            id: row.get(0).unwrap_or("").to_string(),
+            plate: row.get(1).unwrap_or("").to_string(),
+            position_mm: DVec3::new(num(3)?, num(4)?, num(5)?),
+            diameter_mm: num(6)?,
+        });
+    }
+    Ok(out)
+}
+
+/// The run folders of `OUT/runs`, sorted by name.
+pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Diagnostic> {
+    let dir = out.join("runs");
+    let mut v: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
+        .map_err(|e| Diagnostic::file_error(&dir, format!("cannot list the run folders: {e}")))?
+        .flatten()
+        .filter(|e| e.path().is_dir())
+        .map(|e| (e.file_name().to_string_lossy().into_owned(), e.path()))
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+/// A grayscale image: `(width, height, pixels)`, from `<stem>.tiff` or else `<stem>.exr`.
+pub fn read_image(dir: &Path, stem: &str) -> Result<(u32, u32, Vec<u16>), String> {
+    let tiff_path = dir.join(format!("{stem}.tiff"));
+    if tiff_path.exists() {
+        let file = std::fs::File::open(&tiff_path).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
+        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
+        let (w, h) = dec.dimensions().map_err(|e| e.to_string())?;
+        return match dec.read_image().map_err(|e| format!("{}: {e}", tiff_path.display()))? {
+            tiff::decoder::DecodingResult::U16(v) => Ok((w, h, v)),
+            _ => Err(format!("{} is not a 16-bit grayscale TIFF", tiff_path.display())),
+        };
+    }
+    let exr_path = dir.join(format!("{stem}.exr"));
+    let image = exr::prelude::read_first_flat_layer_from_file(&exr_path).map_err(|e| format!("{}: {e}", exr_path.display()))?;
+    let size = image.layer_data.size;
+    let values: Vec<u16> = image.layer_data.channel_data.list[0].sample_data.values_as_f32().map(|v| v as u16).collect();
+    Ok((size.0 as u32, size.1 as u32, values))
+}
