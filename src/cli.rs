@@ -70,6 +70,13 @@ pub enum Command {
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
     },
+    /// Run rsasim's reference RSA program on an output folder: calibrate every beamline from the
+    /// box beads, find each model from its beads, and write measured.json into every run folder.
+    /// It reads only what a real RSA program has: images, nominal set-up, phantoms/ (never truth.json).
+    Reconstruct {
+        /// The output folder of a simulation.
+        out: PathBuf,
+    },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {
         /// Which schema to print.

@@ -28,6 +28,7 @@ fn main() -> ExitCode {
             println!("{}", serde_json::to_string_pretty(&plan.runs).expect("runs serialise"));
         }),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
+        Some(Command::Reconstruct { out }) => reconstruct(&out),
         Some(Command::Evaluate { out, measured, csv, confidence, sided, format, report }) => {
             evaluate(&out, measured, csv, confidence, &sided, &format, report)
         }
@@ -84,6 +85,22 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
         summary.out_dir.display()
     );
     Ok(())
+}
+
+fn reconstruct(out: &std::path::Path) -> Result<(), u8> {
+    let start = Instant::now();
+    let summary = rsasim::reconstruct::reconstruct(out).map_err(|errors| report_errors(&errors))?;
+    for (run, why) in &summary.failed {
+        eprintln!("error: run {run}: {why}");
+    }
+    eprintln!(
+        "rsasim reconstruct: {} run(s) reconstructed, {} failed, in {:.1} s; score them with `rsasim evaluate {}`",
+        summary.runs,
+        summary.failed.len(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if summary.failed.is_empty() { Ok(()) } else { Err(1) }
 }
 
 fn evaluate(

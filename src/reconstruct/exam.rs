@@ -55,21 +55,21 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         let name = if p.mesh.is_some() { format!("{}-beads.csv", p.id) } else { format!("{}.csv", p.id) };
         let file = out.join("phantoms").join(name);
         if file.exists() {
-            beads.insert(p.id.clone(), read_bead_table(&file).map_err(|d| vec![d])?);
+            beads.insert(p.id.clone(), read_bead_table(&file)?);
         }
     }
     Ok(Setup { scenario: loaded.scenario, nominal, beads })
 }
 
 /// Reads a bead table: `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.
-pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Diagnostic> {
-    let mut reader = csv::Reader::from_path(file).map_err(|e| Diagnostic::file_error(file, format!("cannot read: {e}")))?;
+pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
+    let mut reader = csv::Reader::from_path(file).map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
     let mut out = Vec::new();
     for (k, row) in reader.records().enumerate() {
         let bad = |what: String| {
             let mut d = Diagnostic::file_error(file, what).with_help("columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm");
             d.line_col = Some((k + 2, 1));
-            d
+            vec![d]
         };
         let row = row.map_err(|e| bad(format!("malformed row: {e}")))?;
         let num = |i: usize| row.get(i).and_then(|v| v.parse::<f64>().ok()).ok_or_else(|| bad(format!("column {} is not a number", i + 1)));
@@ -84,10 +84,10 @@ pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Diagnostic> {
 }
 
 /// The run folders of `OUT/runs`, sorted by name.
-pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Diagnostic> {
+pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Vec<Diagnostic>> {
     let dir = out.join("runs");
     let mut v: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
-        .map_err(|e| Diagnostic::file_error(&dir, format!("cannot list the run folders: {e}")))?
+        .map_err(|e| vec![Diagnostic::file_error(&dir, format!("cannot list the run folders: {e}"))])?
         .flatten()
         .filter(|e| e.path().is_dir())
         .map(|e| (e.file_name().to_string_lossy().into_owned(), e.path()))

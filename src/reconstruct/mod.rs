@@ -8,3 +8,38 @@ pub mod correspond;
 pub mod detect;
 pub mod exam;
 pub mod rigid;
+pub mod pipeline;
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use crate::diagnostic::Diagnostic;
+use crate::output::atomic::write_atomic;
+
+/// What `reconstruct` did.
+pub struct Summary {
+    /// Runs reconstructed (a measured.json written).
+    pub runs: usize,
+    /// Runs that failed, with the reason.
+    pub failed: Vec<(String, String)>,
+}
+
+/// Reconstructs every run folder of `out` and writes `measured.json` beside its images.
+pub fn reconstruct(out: &Path) -> Result<Summary, Vec<Diagnostic>> {
+    let setup = exam::load_setup(out)?;
+    let runs = exam::run_folders(out)?;
+    let results: Vec<(String, Result<(), String>)> = runs
+        .par_iter()
+        .map(|(id, dir)| {
+            let r = pipeline::reconstruct_run(&setup, id, dir).and_then(|m| {
+                let mut bytes = serde_json::to_vec_pretty(&m).map_err(|e| e.to_string())?;
+                bytes.push(b'\n');
+                write_atomic(&dir.join("measured.json"), &bytes).map(|_| ()).map_err(|e| e.to_string())
+            });
+            (id.clone(), r)
+        })
+        .collect();
+    let failed: Vec<(String, String)> = results.iter().filter_map(|(id, r)| r.as_ref().err().map(|e| (id.clone(), e.clone()))).collect();
+    Ok(Summary { runs: results.len() - failed.len(), failed })
+}

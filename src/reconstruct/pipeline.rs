@@ -1,0 +1,234 @@
+//! One exam from images to `measured.json`: calibrate every beamline from the box beads, then
+//! find each model by marker-based RSA (triangulate its beads, fit its bead geometry).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+
+use super::calibrate::{Beamline, calibrate};
+use super::correspond::{Match, Prediction, match_beads, match_near};
+use super::detect::{Blob, blobs};
+use super::exam::{Setup, TableBead, read_image};
+use super::rigid::{fit_rigid, ray_through_pixel, triangulate};
+use crate::expand::DetectorState;
+use crate::geometry::{DetectorFrame, rotation_xyz_deg};
+use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
+
+/// How far (pixels) a nominal prediction may be from the bead's real image.
+const SEARCH_PX: f64 = 150.0;
+/// RSA guideline limits (Valstar et al. 2005).
+const ME_LIMIT_MM: f64 = 0.35;
+/// Condition-number limit of the guidelines.
+const CN_LIMIT: f64 = 150.0;
+
+/// A calibrated beamline with what it took.
+struct Calibrated {
+    beamline: Beamline,
+    rms_px: f64,
+    beads: usize,
+}
+
+/// The software's name in `measured.json`.
+pub fn software() -> String {
+    format!("rsasim reconstruct {} (DLT + LM, marker-based)", env!("CARGO_PKG_VERSION"))
+}
+
+/// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
+/// the result, as a real software would report a failure.
+pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path) -> Result<Measured, String> {
+    let nominal = &setup.nominal;
+    let box_id = setup.scenario.phantoms.iter().find(|p| p.calibration_box.is_some()).map(|p| p.id.clone());
+    let calibration_exposure = box_id.as_ref().and_then(|b| setup.scenario.exposures.iter().find(|e| e.phantoms.contains(b)));
+    let mut measured = Measured { format: MEASURED_FORMAT.into(), run: run_id.into(), software: software(), sources: vec![], detectors: vec![], phantoms: vec![] };
+    let (Some(box_id), Some(exposure)) = (box_id, calibration_exposure) else {
+        return Err("the scenario has no calibration box in any exposure: the scene cannot be calibrated".into());
+    };
+    let box_beads = setup.beads.get(&box_id).ok_or("no bead table for the calibration box in phantoms/")?;
+    let plates: Vec<&str> = {
+        let mut p: Vec<&str> = box_beads.iter().map(|b| b.plate.as_str()).collect();
+        p.dedup();
+        p
+    };
+    // Each plate's normal in the box frame, from the nominal set-up (plates of the first box).
+    let plate_normals: Vec<Option<DVec3>> = plates
+        .iter()
+        .map(|id| {
+            setup.scenario.phantoms.iter().filter_map(|p| p.calibration_box.as_ref()).flat_map(|b| &b.plates).find(|p| p.id == *id).map(|p| {
+                let box_rotation = nominal.phantoms.iter().find(|x| x.kind == "calibration_box").map_or(glam::DMat3::IDENTITY, |x| x.rotation);
+                box_rotation * rotation_xyz_deg(p.rotation_deg) * DVec3::Z
+            })
+        })
+        .collect();
+
+    let mut beamlines: BTreeMap<String, (Calibrated, &DetectorState)> = BTreeMap::new();
+    for det in &nominal.detectors {
+        let (w, _h, pixels) = read_image(dir, &format!("{}-{}", exposure.id, det.id))?;
+        let found = blobs(&pixels, w as usize, det.i_max());
+        let source = nominal.source_of(det);
+        let frame = det.frame();
+        let preds: Vec<Prediction> = box_beads
+            .iter()
+            .enumerate()
+            .filter_map(|(k, b)| {
+                let group = plates.iter().position(|p| *p == b.plate).unwrap_or(0);
+                predict(&frame, source, b.position_mm, b.diameter_mm, k, group)
+            })
+            .collect();
+        // The first match uses only the plates that face this beamline: a plate seen edge-on
+        // projects into dense lines of beads where a nominal prediction cannot tell neighbours
+        // apart. Its beads join once a calibration predicts them to a fraction of a pixel.
+        let s_axis = det.rotation.z_axis;
+        let facing: Vec<Prediction> =
+            preds.iter().filter(|p| plate_normals[p.group].is_none_or(|n| n.dot(s_axis).abs() > 0.7)).cloned().collect();
+        match calibrate_beamline(&facing, &preds, &found, box_beads, det) {
+            Ok(c) => {
+                beamlines.insert(det.id.clone(), (c, det));
+            }
+            Err(e) => eprintln!("{run_id}: detector {}: calibration failed: {e}", det.id),
+        }
+    }
+    for (id, (c, det)) in &beamlines {
+        let quality = Some(FitQuality { beads_used: Some(c.beads), reprojection_rms_px: Some(c.rms_px), ..Default::default() });
+        if !measured.sources.iter().any(|s| s.id == det.source) {
+            measured.sources.push(MeasuredPoint { id: det.source.clone(), position_mm: c.beamline.source_mm.to_array(), quality: quality.clone() });
+        }
+        let rot = c.beamline.detector.rotation.transpose();
+        measured.detectors.push(MeasuredPose {
+            id: id.clone(),
+            position_mm: c.beamline.detector.position_mm.to_array(),
+            rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
+            markers: vec![],
+            quality,
+        });
+    }
+
+    for phantom in &nominal.phantoms {
+        if phantom.kind == "calibration_box" {
+            continue;
+        }
+        let (Some(beads), Some(exposure)) =
+            (setup.beads.get(&phantom.id), setup.scenario.exposures.iter().find(|e| e.phantoms.contains(&phantom.id)))
+        else {
+            continue;
+        };
+        match find_model(dir, &exposure.id, &beamlines, phantom.pose(), beads) {
+            Ok(pose) => measured.phantoms.push(MeasuredPose { id: phantom.id.clone(), ..pose }),
+            Err(e) => eprintln!("{run_id}: model {}: not found: {e}", phantom.id),
+        }
+    }
+    Ok(measured)
+}
+
+/// The predicted blob of a bead: projected centre and expected area.
+fn predict(frame: &DetectorFrame, source: DVec3, p: DVec3, diameter_mm: f64, index: usize, group: usize) -> Option<Prediction> {
+    let uv = frame.project(source, p)?;
+    let s = frame.pose.to_local(source);
+    let z = frame.pose.to_local(p).z;
+    let radius_px = diameter_mm / 2.0 * s.z / (s.z - z) / frame.pixel_pitch_mm[0];
+    frame.contains_pixel(uv).then(|| Prediction { index, uv, expected_area: std::f64::consts::PI * radius_px * radius_px, group })
+}
+
+/// Match the `first` predictions → calibrate → re-predict all `preds` with the calibration →
+/// match tightly → calibrate again, until the matches settle.
+fn calibrate_beamline(
+    first: &[Prediction],
+    preds: &[Prediction],
+    found: &[Blob],
+    beads: &[TableBead],
+    det: &DetectorState,
+) -> Result<Calibrated, String> {
+    let mut matches = match_beads(first, found, SEARCH_PX);
+    let mut result = None;
+    for _ in 0..3 {
+        let points: Vec<DVec3> = matches.iter().map(|m| beads[m.index].position_mm).collect();
+        let uvs: Vec<DVec2> = matches.iter().map(|m| m.uv).collect();
+        let refined = calibrate(&points, &uvs, det.pixels, det.pixel_pitch_mm)?;
+        let frame = refined.beamline.frame(det.pixels, det.pixel_pitch_mm);
+        let repredicted: Vec<Prediction> = preds
+            .iter()
+            .filter_map(|p| predict(&frame, refined.beamline.source_mm, beads[p.index].position_mm, beads[p.index].diameter_mm, p.index, p.group))
+            .collect();
+        let beads_used = matches.len() - refined.dropped.len();
+        result = Some(Calibrated { beamline: refined.beamline, rms_px: refined.rms_px, beads: beads_used });
+        let next = match_near(&repredicted, found, 2.5);
+        if next.len() == matches.len() && next.iter().zip(&matches).all(|(a, b)| a.index == b.index && a.blob == b.blob) {
+            break;
+        }
+        matches = next;
+    }
+    result.ok_or_else(|| "no calibration".into())
+}
+
+/// Marker-based RSA of one model: match its beads in every calibrated view, triangulate the
+/// beads seen twice or more, fit the bead geometry, re-predict with the fit and repeat once.
+fn find_model(
+    dir: &Path,
+    exposure: &str,
+    beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
+    nominal_pose: crate::geometry::Pose,
+    beads: &[TableBead],
+) -> Result<MeasuredPose, String> {
+    let images: Vec<(&Calibrated, &DetectorState, Vec<Blob>)> = beamlines
+        .values()
+        .map(|(c, det)| read_image(dir, &format!("{exposure}-{}", det.id)).map(|(w, _, px)| (c, *det, blobs(&px, w as usize, det.i_max()))))
+        .collect::<Result<_, _>>()?;
+    let mut pose = nominal_pose;
+    let mut best: Option<MeasuredPose> = None;
+    for pass in 0..2 {
+        let mut views: Vec<Vec<Match>> = Vec::new();
+        for (c, det, found) in &images {
+            let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
+            let preds: Vec<Prediction> = beads
+                .iter()
+                .enumerate()
+                .filter_map(|(k, b)| predict(&frame, c.beamline.source_mm, pose.to_world(b.position_mm), b.diameter_mm, k, 0))
+                .collect();
+            views.push(if pass == 0 { match_beads(&preds, found, SEARCH_PX) } else { match_near(&preds, found, 3.0) });
+        }
+        let mut model = Vec::new();
+        let mut world = Vec::new();
+        let mut crossing = Vec::new();
+        for (k, _) in beads.iter().enumerate() {
+            let rays: Vec<(DVec3, DVec3)> = images
+                .iter()
+                .zip(&views)
+                .filter_map(|((c, det, _), v)| v.iter().find(|m| m.index == k).map(|m| ray_through_pixel(&c.beamline, det.pixels, det.pixel_pitch_mm, m.uv)))
+                .collect();
+            if rays.len() >= 2 {
+                let (p, err) = triangulate(&rays);
+                model.push(beads[k].position_mm);
+                world.push(p);
+                crossing.push(err);
+            }
+        }
+        if model.len() < 3 {
+            return Err(format!("only {} bead(s) seen in two views; marker-based RSA needs 3", model.len()));
+        }
+        let fit = fit_rigid(&model, &world)?;
+        pose = fit.pose;
+        let mut flags = Vec::new();
+        if fit.mean_error_mm > ME_LIMIT_MM {
+            flags.push(format!("ME > {ME_LIMIT_MM} mm"));
+        }
+        if fit.condition_number > CN_LIMIT {
+            flags.push(format!("CN > {CN_LIMIT}"));
+        }
+        let rot = fit.pose.rotation.transpose();
+        best = Some(MeasuredPose {
+            id: String::new(),
+            position_mm: fit.pose.position_mm.to_array(),
+            rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
+            markers: vec![],
+            quality: Some(FitQuality {
+                beads_used: Some(model.len()),
+                crossing_line_error_mm: Some(crossing.iter().sum::<f64>() / crossing.len() as f64),
+                mean_error_mm: Some(fit.mean_error_mm),
+                condition_number: Some(fit.condition_number),
+                flags,
+                ..Default::default()
+            }),
+        });
+    }
+    best.ok_or_else(|| "no fit".into())
+}
