@@ -126,7 +126,7 @@ fn predict(frame: &DetectorFrame, source: DVec3, p: DVec3, diameter_mm: f64, ind
     let s = frame.pose.to_local(source);
     let z = frame.pose.to_local(p).z;
     let radius_px = diameter_mm / 2.0 * s.z / (s.z - z) / frame.pixel_pitch_mm[0];
-    frame.contains_pixel(uv).then(|| Prediction { index, uv, expected_area: std::f64::consts::PI * radius_px * radius_px, group })
+    frame.contains_pixel(uv).then_some(Prediction { index, uv, expected_area: std::f64::consts::PI * radius_px * radius_px, group })
 }
 
 /// Match the `first` predictions → calibrate → re-predict all `preds` with the calibration →
