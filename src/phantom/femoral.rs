@@ -23,10 +23,23 @@
 //! frame suits a right knee, with x to the right a left knee.
 //!
 //! # Beads
-//! Six 1.0 mm tantalum beads lie on the bone side, 3 mm behind the anterior, distal, anterior
-//! chamfer and posterior cuts (as if on short pegs in the cement mantle), so each bead's surface
-//! is 2.5 mm clear of the metal and shows as a separate blob on a radiograph. They are spread
-//! over the component in all three directions.
+//! Six 1.0 mm tantalum beads K1–K6 sit in the bone bed just proximal to the component, as an RSA
+//! lab places femoral markers in the distal metaphysis (here fixed rigidly to the component, as in
+//! a phantom where implant and bone are one block): a low ring 7–13 mm above the top of the
+//! anterior flange (K1 behind the anterior cortex, K2 central, K3 posterior-medial, 27 mm above
+//! the posterior condyles) and a high ring 25 mm above it (K4 anterior-medial, K5 central, K6
+//! posterior-lateral). Their surfaces are 10–36 mm from the metal.
+//!
+//! Why there: a bead on or behind the bone cuts is hidden in both standard views. Seen
+//! antero-posteriorly, the anterior flange covers the whole bone box up to its top; seen
+//! laterally, the J-shaped profile is 68 mm deep along the beam, so a tilt of ±10° about the
+//! femoral or the antero-posterior axis sweeps its shadow by about ±7 mm; beads on posts beyond
+//! the sides would need posts about 8 mm long to clear it. Proximal to the flange top both shadows
+//! end. Within that region the beads are spread in all three directions (smallest/largest
+//! covariance eigenvalue about 0.68), and no two of them line up within 25° of either beam (the
+//! x or the z axis), so their blobs stay apart. The tests render both views over rotations of up
+//! to ±12° about each local axis and check that every bead's disc is clear of the metal's shadow
+//! and of every other bead's disc.
 
 pub mod profile;
 
@@ -62,9 +75,18 @@ const R_CORONAL: f64 = 35.0;
 /// Patellar groove depth and half-width, mm.
 const GROOVE_DEPTH: f64 = 2.5;
 const GROOVE_HALF_WIDTH: f64 = 16.0;
-/// Bead diameter and depth of bead centres behind their bone cut, mm.
+/// Bead diameter, mm.
 const BEAD_DIAMETER: f64 = 1.0;
-const BEAD_DEPTH: f64 = 3.0;
+/// Bead centres K1–K6 in the local frame, mm (see the module documentation): a low ring just above
+/// the anterior flange and a high ring 25 mm above it, each anterior, central and posterior.
+const BEAD_CENTRES_MM: [[f64; 3]; 6] = [
+    [6.0, 34.0, 12.0],    // K1: above the flange, behind the anterior cortex
+    [0.0, 36.0, 2.0],     // K2: central
+    [-14.0, 40.0, -12.0], // K3: above the posterior condyles, medial side
+    [-10.0, 52.0, 12.0],  // K4: high, anterior
+    [-4.0, 52.0, 6.0],    // K5: high, central
+    [14.0, 52.0, -6.0],   // K6: high, posterior, lateral side
+];
 
 /// A tantalum marker bead fixed to the component, in the component's local frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -103,14 +125,10 @@ pub fn femoral_component() -> FemoralComponent {
     }
     let centre = (lo + hi) * 0.5;
     let vertices = surface.vertices.iter().map(|v| (*v - centre).as_vec3().to_array()).collect();
-    let beads = bead_centres(&outer)
+    let beads = BEAD_CENTRES_MM
         .iter()
         .enumerate()
-        .map(|(i, p)| FemoralBead {
-            id: format!("K{}", i + 1),
-            position_mm: (*p - centre).to_array().map(|c| (c * 1000.0).round() / 1000.0),
-            diameter_mm: BEAD_DIAMETER,
-        })
+        .map(|(i, p)| FemoralBead { id: format!("K{}", i + 1), position_mm: *p, diameter_mm: BEAD_DIAMETER })
         .collect();
     FemoralComponent { mesh: TriMesh { vertices, triangles: surface.triangles }, beads }
 }
@@ -179,28 +197,6 @@ fn solid(p: DVec3, s_outer: f64, s_bone: f64) -> f64 {
     let metal = round_intersection(outer, -s_bone, R_INNER);
     let notch = round_intersection(p.x.abs() - NOTCH_HALF_WIDTH, p.z - NOTCH_END_Z, NOTCH_HALF_WIDTH);
     round_intersection(metal, -notch, R_NOTCH_EDGE)
-}
-
-/// Bead centres in the design frame: `BEAD_DEPTH` behind a bone cut, at (x, cut, y or z).
-fn bead_centres(outer: &Polygon) -> Vec<DVec3> {
-    let cuts = profile::cut_planes(outer);
-    // (x, cut index, given coordinate): cuts 0, 1, 3, 4 are placed by height y, cut 2 (distal) by z.
-    let placements: [(f64, usize, f64); 6] = [
-        (22.0, 4, 30.0),  // posterior cut, one condyle
-        (-20.0, 4, 22.0), // posterior cut, the other condyle
-        (12.0, 0, 44.0),  // anterior flange, high
-        (-15.0, 0, 30.0), // anterior flange, low
-        (-24.0, 2, -4.0), // distal cut
-        (26.0, 1, 13.5),  // anterior chamfer
-    ];
-    placements
-        .iter()
-        .map(|&(x, cut, given)| {
-            let (n, c) = cuts[cut];
-            let (z, y) = if cut == 2 { (given, (c - n[0] * given) / n[1]) } else { ((c - n[1] * given) / n[0], given) };
-            DVec3::new(x, y - BEAD_DEPTH * n[1], z - BEAD_DEPTH * n[0])
-        })
-        .collect()
 }
 
 #[cfg(test)]
