@@ -7,6 +7,7 @@ pub mod calibrate;
 pub mod correspond;
 pub mod detect;
 pub mod exam;
+pub mod model;
 pub mod rigid;
 pub mod pipeline;
 

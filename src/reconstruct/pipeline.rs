@@ -7,10 +7,10 @@ use std::path::Path;
 use glam::{DVec2, DVec3};
 
 use super::calibrate::{Beamline, calibrate};
-use super::correspond::{Match, Prediction, match_beads, match_near};
+use super::correspond::{Prediction, match_beads, match_near};
 use super::detect::{Blob, blobs};
 use super::exam::{Setup, TableBead, read_image};
-use super::rigid::{fit_rigid, ray_through_pixel, triangulate};
+use super::model::View;
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, rotation_xyz_deg};
 use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
@@ -112,7 +112,7 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path) -> Result<Measur
         else {
             continue;
         };
-        match find_model(dir, &exposure.id, &beamlines, phantom.pose(), beads) {
+        match find_model(dir, &exposure.id, &beamlines, beads) {
             Ok(pose) => measured.phantoms.push(MeasuredPose { id: phantom.id.clone(), ..pose }),
             Err(e) => eprintln!("{run_id}: model {}: not found: {e}", phantom.id),
         }
@@ -160,75 +160,54 @@ fn calibrate_beamline(
     result.ok_or_else(|| "no calibration".into())
 }
 
-/// Marker-based RSA of one model: match its beads in every calibrated view, triangulate the
-/// beads seen twice or more, fit the bead geometry, re-predict with the fit and repeat once.
+/// Marker-based RSA of one model from its bead-sized blobs in every calibrated view (see
+/// [`super::model`]).
 fn find_model(
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
-    nominal_pose: crate::geometry::Pose,
     beads: &[TableBead],
 ) -> Result<MeasuredPose, String> {
-    let images: Vec<(&Calibrated, &DetectorState, Vec<Blob>)> = beamlines
-        .values()
-        .map(|(c, det)| read_image(dir, &format!("{exposure}-{}", det.id)).map(|(w, _, px)| (c, *det, blobs(&px, w as usize, det.i_max()))))
-        .collect::<Result<_, _>>()?;
-    let mut pose = nominal_pose;
-    let mut best: Option<MeasuredPose> = None;
-    for pass in 0..2 {
-        let mut views: Vec<Vec<Match>> = Vec::new();
-        for (c, det, found) in &images {
-            let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
-            let preds: Vec<Prediction> = beads
-                .iter()
-                .enumerate()
-                .filter_map(|(k, b)| predict(&frame, c.beamline.source_mm, pose.to_world(b.position_mm), b.diameter_mm, k, 0))
-                .collect();
-            views.push(if pass == 0 { match_beads(&preds, found, SEARCH_PX) } else { match_near(&preds, found, 3.0) });
-        }
-        let mut model = Vec::new();
-        let mut world = Vec::new();
-        let mut crossing = Vec::new();
-        for (k, _) in beads.iter().enumerate() {
-            let rays: Vec<(DVec3, DVec3)> = images
-                .iter()
-                .zip(&views)
-                .filter_map(|((c, det, _), v)| v.iter().find(|m| m.index == k).map(|m| ray_through_pixel(&c.beamline, det.pixels, det.pixel_pitch_mm, m.uv)))
-                .collect();
-            if rays.len() >= 2 {
-                let (p, err) = triangulate(&rays);
-                model.push(beads[k].position_mm);
-                world.push(p);
-                crossing.push(err);
-            }
-        }
-        if model.len() < 3 {
-            return Err(format!("only {} bead(s) seen in two views; marker-based RSA needs 3", model.len()));
-        }
-        let fit = fit_rigid(&model, &world)?;
-        pose = fit.pose;
-        let mut flags = Vec::new();
-        if fit.mean_error_mm > ME_LIMIT_MM {
-            flags.push(format!("ME > {ME_LIMIT_MM} mm"));
-        }
-        if fit.condition_number > CN_LIMIT {
-            flags.push(format!("CN > {CN_LIMIT}"));
-        }
-        let rot = fit.pose.rotation.transpose();
-        best = Some(MeasuredPose {
-            id: String::new(),
-            position_mm: fit.pose.position_mm.to_array(),
-            rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
-            markers: vec![],
-            quality: Some(FitQuality {
-                beads_used: Some(model.len()),
-                crossing_line_error_mm: Some(crossing.iter().sum::<f64>() / crossing.len() as f64),
-                mean_error_mm: Some(fit.mean_error_mm),
-                condition_number: Some(fit.condition_number),
-                flags,
-                ..Default::default()
-            }),
-        });
+    let mut views = Vec::new();
+    for (c, det) in beamlines.values() {
+        let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
+        let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
+        // A bead's expected blob area, from the calibrated magnification at the box centre.
+        let s = frame.pose.to_local(c.beamline.source_mm);
+        let z = frame.pose.to_local(DVec3::ZERO).z;
+        let diameter = beads.iter().map(|b| b.diameter_mm).fold(0.0, f64::max);
+        let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
+        let expected = std::f64::consts::PI * radius_px * radius_px;
+        let candidates = blobs(&px, w as usize, det.i_max())
+            .into_iter()
+            .filter(|b| (b.area as f64) >= 0.45 * expected && (b.area as f64) <= 1.6 * expected + 2.0)
+            .map(|b| b.centroid)
+            .collect();
+        views.push(View { beamline: &c.beamline, pixels: det.pixels, pitch: det.pixel_pitch_mm, blobs: candidates });
     }
-    best.ok_or_else(|| "no fit".into())
+    let local: Vec<DVec3> = beads.iter().map(|b| b.position_mm).collect();
+    let found = super::model::find_model(&views, &local)?;
+    let fit = &found.fit;
+    let mut flags = Vec::new();
+    if fit.mean_error_mm > ME_LIMIT_MM {
+        flags.push(format!("ME > {ME_LIMIT_MM} mm"));
+    }
+    if fit.condition_number > CN_LIMIT {
+        flags.push(format!("CN > {CN_LIMIT}"));
+    }
+    let rot = fit.pose.rotation.transpose();
+    Ok(MeasuredPose {
+        id: String::new(),
+        position_mm: fit.pose.position_mm.to_array(),
+        rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
+        markers: vec![],
+        quality: Some(FitQuality {
+            beads_used: Some(found.beads_used),
+            crossing_line_error_mm: Some(found.crossing_line_error_mm),
+            mean_error_mm: Some(fit.mean_error_mm),
+            condition_number: Some(fit.condition_number),
+            flags,
+            ..Default::default()
+        }),
+    })
 }
