@@ -28,7 +28,7 @@ fn main() -> ExitCode {
             println!("{}", serde_json::to_string_pretty(&plan.runs).expect("runs serialise"));
         }),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
-        Some(Command::Reconstruct { out }) => reconstruct(&out),
+        Some(Command::Reconstruct { out, method }) => reconstruct(&out, method),
         Some(Command::Evaluate { out, measured, csv, confidence, sided, format, report }) => {
             evaluate(&out, measured, csv, confidence, &sided, &format, report)
         }
@@ -87,9 +87,9 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
     Ok(())
 }
 
-fn reconstruct(out: &std::path::Path) -> Result<(), u8> {
+fn reconstruct(out: &std::path::Path, method: rsasim::reconstruct::Method) -> Result<(), u8> {
     let start = Instant::now();
-    let summary = rsasim::reconstruct::reconstruct(out).map_err(|errors| report_errors(&errors))?;
+    let summary = rsasim::reconstruct::reconstruct(out, method).map_err(|errors| report_errors(&errors))?;
     for (run, why) in &summary.failed {
         eprintln!("error: run {run}: {why}");
     }

@@ -55,7 +55,7 @@ pub struct Refined {
 
 /// Similarity transform (as a matrix acting on homogeneous coordinates) that moves the centroid
 /// of `pts` (given as coordinate slices) to the origin and scales the mean distance to `√dim`.
-fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>, String> {
+pub(crate) fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>, String> {
     let n = pts.len() as f64;
     let mut c = vec![0.0; dim];
     for p in pts {
@@ -233,7 +233,7 @@ fn residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv:
 }
 
 /// Per-point reprojection distances in pixels (infinite where a point does not project).
-fn point_residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv: &[DVec2]) -> Vec<f64> {
+pub(crate) fn point_residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv: &[DVec2]) -> Vec<f64> {
     pts.iter()
         .zip(uv)
         .map(|(p, m)| b.project(pixels, pitch, *p).map_or(f64::INFINITY, |q| (q - *m).length()))

@@ -79,8 +79,9 @@ pub fn find_model(views: &[View], model: &[DVec3]) -> Result<ModelFit, String> {
         return Err(format!("only {} bead(s) seen in two views; marker-based RSA needs 3", cands.len()));
     }
     let close = |a: DVec3, b: DVec3, d: f64| ((a - b).length() - d).abs() <= DISTANCE_TOL_MM;
-    // (inliers, rms) of the best assignment so far, with its pairs (model index, candidate index).
-    let mut best: Option<(usize, f64, Vec<(usize, usize)>)> = None;
+    // The best assignment so far: (inliers, rms, pairs of (model index, candidate index)).
+    type Assignment = (usize, f64, Vec<(usize, usize)>);
+    let mut best: Option<Assignment> = None;
     let n = cands.len();
     for i in 0..model.len() {
         for j in i + 1..model.len() {

@@ -6,13 +6,16 @@ use std::path::Path;
 
 use glam::{DVec2, DVec3};
 
-use super::calibrate::{Beamline, calibrate};
-use super::correspond::{Prediction, match_beads, match_near};
+use super::Method;
+use super::calibrate::{Beamline, Refined, calibrate};
+use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::detect::{Blob, blobs};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
+use super::selvik::calibrate_selvik;
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, rotation_xyz_deg};
+use crate::scenario::PlateRole;
 use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
@@ -29,18 +32,30 @@ struct Calibrated {
     beads: usize,
 }
 
-/// The software's name in `measured.json`.
-pub fn software() -> String {
-    format!("rsasim reconstruct {} (DLT + LM, marker-based)", env!("CARGO_PKG_VERSION"))
+/// The software's name in `measured.json`, naming the calibration method.
+pub fn software(method: Method) -> String {
+    let calibration = match method {
+        Method::Dlt => "DLT + LM",
+        Method::Selvik => "Selvik: fiducial homography + control focus",
+    };
+    format!("rsasim reconstruct {} ({calibration}, marker-based)", env!("CARGO_PKG_VERSION"))
+}
+
+/// What the calibration knows of each plate of the box: its role and whether it faces the beamline.
+#[derive(Debug, Clone, Copy)]
+struct PlateUse {
+    role: Option<PlateRole>,
+    facing: bool,
 }
 
 /// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
 /// the result, as a real software would report a failure.
-pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path) -> Result<Measured, String> {
+/// Every beamline is calibrated by `method`.
+pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) -> Result<Measured, String> {
     let nominal = &setup.nominal;
     let box_id = setup.scenario.phantoms.iter().find(|p| p.calibration_box.is_some()).map(|p| p.id.clone());
     let calibration_exposure = box_id.as_ref().and_then(|b| setup.scenario.exposures.iter().find(|e| e.phantoms.contains(b)));
-    let mut measured = Measured { format: MEASURED_FORMAT.into(), run: run_id.into(), software: software(), sources: vec![], detectors: vec![], phantoms: vec![] };
+    let mut measured = Measured { format: MEASURED_FORMAT.into(), run: run_id.into(), software: software(method), sources: vec![], detectors: vec![], phantoms: vec![] };
     let (Some(box_id), Some(exposure)) = (box_id, calibration_exposure) else {
         return Err("the scenario has no calibration box in any exposure: the scene cannot be calibrated".into());
     };
@@ -51,6 +66,8 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path) -> Result<Measur
         p
     };
     // Each plate's normal in the box frame, from the nominal set-up (plates of the first box).
+    let box_plates = || setup.scenario.phantoms.iter().filter_map(|p| p.calibration_box.as_ref()).flat_map(|b| &b.plates);
+    let plate_roles: Vec<Option<PlateRole>> = plates.iter().map(|id| box_plates().find(|p| p.id == *id).map(|p| p.role)).collect();
     let plate_normals: Vec<Option<DVec3>> = plates
         .iter()
         .map(|id| {
@@ -81,7 +98,13 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path) -> Result<Measur
         let s_axis = det.rotation.z_axis;
         let facing: Vec<Prediction> =
             preds.iter().filter(|p| plate_normals[p.group].is_none_or(|n| n.dot(s_axis).abs() > 0.7)).cloned().collect();
-        match calibrate_beamline(&facing, &preds, &found, box_beads, det) {
+        let uses: Vec<PlateUse> = plate_normals
+            .iter()
+            .zip(&plate_roles)
+            .map(|(n, role)| PlateUse { role: *role, facing: n.is_none_or(|n| n.dot(s_axis).abs() > 0.7) })
+            .collect();
+        let fit = |matches: &[Match]| fit_beamline(method, matches, box_beads, &plates, &uses, det);
+        match calibrate_beamline(&facing, &preds, &found, box_beads, det, fit) {
             Ok(c) => {
                 beamlines.insert(det.id.clone(), (c, det));
             }
@@ -129,27 +152,68 @@ fn predict(frame: &DetectorFrame, source: DVec3, p: DVec3, diameter_mm: f64, ind
     frame.contains_pixel(uv).then_some(Prediction { index, uv, expected_area: std::f64::consts::PI * radius_px * radius_px, group })
 }
 
-/// Match the `first` predictions → calibrate → re-predict all `preds` with the calibration →
-/// match tightly → calibrate again, until the matches settle.
+/// One calibration of a beamline from matched box beads by `method`: the fit and the number of
+/// beads it used.
+///
+/// DLT: every matched bead. Selvik: the beads of the fiducial plate that faces the beamline (the
+/// one with the most matches, should several face it) and of every control plate that faces it;
+/// beads of plates seen edge-on are left out.
+fn fit_beamline(
+    method: Method,
+    matches: &[Match],
+    beads: &[TableBead],
+    plates: &[&str],
+    uses: &[PlateUse],
+    det: &DetectorState,
+) -> Result<(Refined, usize), String> {
+    let (pixels, pitch) = (det.pixels, det.pixel_pitch_mm);
+    match method {
+        Method::Dlt => {
+            let points: Vec<DVec3> = matches.iter().map(|m| beads[m.index].position_mm).collect();
+            let uvs: Vec<DVec2> = matches.iter().map(|m| m.uv).collect();
+            let refined = calibrate(&points, &uvs, pixels, pitch)?;
+            let used = matches.len() - refined.dropped.len();
+            Ok((refined, used))
+        }
+        Method::Selvik => {
+            let group = |m: &Match| plates.iter().position(|p| *p == beads[m.index].plate);
+            let of_group = |g: usize| matches.iter().filter(move |m| group(m) == Some(g));
+            let fiducial_plate = (0..plates.len())
+                .filter(|&g| uses[g].facing && uses[g].role == Some(PlateRole::Fiducial))
+                .max_by_key(|&g| of_group(g).count())
+                .ok_or("Selvik's method needs a fiducial plate facing the beamline; the box has none")?;
+            let (f, fu): (Vec<DVec3>, Vec<DVec2>) = of_group(fiducial_plate).map(|m| (beads[m.index].position_mm, m.uv)).unzip();
+            let (c, cu): (Vec<DVec3>, Vec<DVec2>) = matches
+                .iter()
+                .filter(|m| group(m).is_some_and(|g| uses[g].facing && uses[g].role == Some(PlateRole::Control)))
+                .map(|m| (beads[m.index].position_mm, m.uv))
+                .unzip();
+            let refined = calibrate_selvik((&f, &fu), (&c, &cu), pixels, pitch)?;
+            let used = f.len() + c.len() - refined.dropped.len();
+            Ok((refined, used))
+        }
+    }
+}
+
+/// Match the `first` predictions → calibrate with `fit` → re-predict all `preds` with the
+/// calibration → match tightly → calibrate again, until the matches settle.
 fn calibrate_beamline(
     first: &[Prediction],
     preds: &[Prediction],
     found: &[Blob],
     beads: &[TableBead],
     det: &DetectorState,
+    fit: impl Fn(&[Match]) -> Result<(Refined, usize), String>,
 ) -> Result<Calibrated, String> {
     let mut matches = match_beads(first, found, SEARCH_PX);
     let mut result = None;
     for _ in 0..3 {
-        let points: Vec<DVec3> = matches.iter().map(|m| beads[m.index].position_mm).collect();
-        let uvs: Vec<DVec2> = matches.iter().map(|m| m.uv).collect();
-        let refined = calibrate(&points, &uvs, det.pixels, det.pixel_pitch_mm)?;
+        let (refined, beads_used) = fit(&matches)?;
         let frame = refined.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let repredicted: Vec<Prediction> = preds
             .iter()
             .filter_map(|p| predict(&frame, refined.beamline.source_mm, beads[p.index].position_mm, beads[p.index].diameter_mm, p.index, p.group))
             .collect();
-        let beads_used = matches.len() - refined.dropped.len();
         result = Some(Calibrated { beamline: refined.beamline, rms_px: refined.rms_px, beads: beads_used });
         let next = match_near(&repredicted, found, 2.5);
         if next.len() == matches.len() && next.iter().zip(&matches).all(|(a, b)| a.index == b.index && a.blob == b.blob) {
