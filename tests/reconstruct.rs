@@ -88,4 +88,15 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
         eprintln!("{table} {group} {cols:?}: max |T| {t:.4}, max RMS {r:.4} (bound {bound})");
         assert!(r < *bound, "{table} {group} {cols:?}: RMS {r} exceeds {bound}");
     }
+
+    // The classic Selvik calibration on the same images: lateral accuracy within the same bound.
+    let o = rsasim(&["reconstruct", out.to_str().unwrap(), "--method", "selvik"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = evaluate(&out, &Options { measured: MeasuredSource::PerRun("measured.json".into()), confidence: Confidence::default() }).unwrap();
+    assert!(report.software.iter().any(|s| s.contains("Selvik")), "{:?}", report.software);
+    for (table, group, cols, bound) in &checks[..4] {
+        let r = cell_max(&report, table, group, cols, rms);
+        eprintln!("selvik: {table} {group} {cols:?}: max RMS {r:.4} (bound {bound})");
+        assert!(r < *bound, "selvik: {table} {group} {cols:?}: RMS {r} exceeds {bound}");
+    }
 }
