@@ -55,7 +55,7 @@ pub struct Refined {
 
 /// Similarity transform (as a matrix acting on homogeneous coordinates) that moves the centroid
 /// of `pts` (given as coordinate slices) to the origin and scales the mean distance to `√dim`.
-pub(crate) fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>, String> {
+fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>, String> {
     let n = pts.len() as f64;
     let mut c = vec![0.0; dim];
     for p in pts {
@@ -78,6 +78,44 @@ pub(crate) fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>
         t[(k, dim)] = -s * c[k];
     }
     Ok(t)
+}
+
+/// The normalised DLT for a projective map from points of any dimension d to the image plane:
+/// the 3 × (d+1) matrix M with (x', y', 1)ᵀ ∝ M·(x, 1)ᵀ, from Hartley-normalised point sets and the
+/// SVD null vector, denormalised (`T_to⁻¹ · M_n · T_from`). The camera DLT (d = 3) and the
+/// homography of Selvik's method (d = 2) are both this. `degenerate` is the error when the null
+/// space is not one-dimensional.
+pub(crate) fn projective_dlt(from: &[Vec<f64>], to: &[DVec2], degenerate: &str) -> Result<DMatrix<f64>, String> {
+    let (n, d) = (from.len(), from.first().map_or(0, Vec::len));
+    let t_from = normalisation(from, d)?;
+    let t_to = normalisation(&to.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 2)?;
+    let cols = d + 1;
+    // At least 3·cols rows, so that the thin SVD holds the null vector (zero rows change nothing).
+    let mut a = DMatrix::<f64>::zeros((2 * n).max(3 * cols), 3 * cols);
+    for (i, (f, t)) in from.iter().zip(to).enumerate() {
+        let mut h = f.clone();
+        h.push(1.0);
+        let x = &t_from * DMatrix::from_column_slice(cols, 1, &h);
+        let m = &t_to * DMatrix::from_column_slice(3, 1, &[t.x, t.y, 1.0]);
+        let (u, v) = (m[0] / m[2], m[1] / m[2]);
+        for k in 0..cols {
+            a[(2 * i, k)] = x[k];
+            a[(2 * i, 2 * cols + k)] = -u * x[k];
+            a[(2 * i + 1, cols + k)] = x[k];
+            a[(2 * i + 1, 2 * cols + k)] = -v * x[k];
+        }
+    }
+    let svd = a.svd(false, true);
+    let v_t = svd.v_t.ok_or("SVD failed")?;
+    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+    order.sort_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]));
+    if svd.singular_values[order[1]] <= 1e-10 * svd.singular_values.max() {
+        return Err(degenerate.into());
+    }
+    let h = v_t.row(order[0]);
+    let normalised = DMatrix::from_row_slice(3, cols, &h.iter().copied().collect::<Vec<_>>());
+    let t_to_inv = t_to.try_inverse().ok_or("singular 2-D normalisation")?;
+    Ok(t_to_inv * normalised * t_from)
 }
 
 /// Direct linear transform: the 3×4 projection matrix P with (u, v, 1)ᵀ ∝ P·(X, 1)ᵀ.
@@ -108,31 +146,8 @@ pub fn dlt(points: &[DVec3], pixels_uv: &[DVec2]) -> Result<[[f64; 4]; 3], Strin
         return Err("calibration points are coplanar (or collinear): the DLT is degenerate".into());
     }
 
-    let t3 = normalisation(&points.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 3)?;
-    let t2 = normalisation(&pixels_uv.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 2)?;
-    let mut a = DMatrix::<f64>::zeros(2 * n, 12);
-    for (i, (p, uv)) in points.iter().zip(pixels_uv).enumerate() {
-        let x = &t3 * DMatrix::from_column_slice(4, 1, &[p.x, p.y, p.z, 1.0]);
-        let m = &t2 * DMatrix::from_column_slice(3, 1, &[uv.x, uv.y, 1.0]);
-        let (u, v) = (m[0] / m[2], m[1] / m[2]);
-        for k in 0..4 {
-            a[(2 * i, k)] = x[k];
-            a[(2 * i, 8 + k)] = -u * x[k];
-            a[(2 * i + 1, 4 + k)] = x[k];
-            a[(2 * i + 1, 8 + k)] = -v * x[k];
-        }
-    }
-    let svd = a.svd(false, true);
-    let v_t = svd.v_t.ok_or("SVD failed")?;
-    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
-    order.sort_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]));
-    if svd.singular_values[order[1]] <= 1e-10 * svd.singular_values.max() {
-        return Err("degenerate calibration configuration: the DLT solution is not unique".into());
-    }
-    let h = v_t.row(order[0]);
-    let pn = DMatrix::from_row_slice(3, 4, &h.iter().copied().collect::<Vec<_>>());
-    let t2_inv = t2.try_inverse().ok_or("singular 2-D normalisation")?;
-    let p = t2_inv * pn * t3;
+    let from: Vec<Vec<f64>> = points.iter().map(|p| p.to_array().to_vec()).collect();
+    let p = projective_dlt(&from, pixels_uv, "degenerate calibration configuration: the DLT solution is not unique")?;
     let norm = p.norm();
     let mut out = [[0.0; 4]; 3];
     for (r, row) in out.iter_mut().enumerate() {

@@ -17,9 +17,9 @@
 //! pixel centres at i + 0.5; detector axes r, c, s = r × c towards the source.
 
 use glam::{DMat3, DVec2, DVec3};
-use nalgebra::{DMatrix, SMatrix, SVector};
+use nalgebra::{SMatrix, SVector};
 
-use super::calibrate::{Beamline, Refined, decompose, normalisation, point_residuals};
+use super::calibrate::{Beamline, Refined, decompose, point_residuals, projective_dlt};
 
 /// Relative tolerance on flatness: a fiducial bead may be off the fitted plane, and a control
 /// bead must be off it, by this fraction of the fiducial plate's RMS radius.
@@ -96,32 +96,8 @@ fn homography(from: &[DVec2], to: &[DVec2]) -> Result<DMat3, String> {
     if n < 4 {
         return Err(format!("the image-to-fiducial-plane homography needs at least 4 fiducial beads, got {n}"));
     }
-    let t_from = normalisation(&from.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 2)?;
-    let t_to = normalisation(&to.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 2)?;
-    // At least 9 rows so that the thin SVD has the null vector (zero rows change nothing).
-    let mut a = DMatrix::<f64>::zeros((2 * n).max(9), 9);
-    for (i, (f, t)) in from.iter().zip(to).enumerate() {
-        let p = &t_from * DMatrix::from_column_slice(3, 1, &[f.x, f.y, 1.0]);
-        let q = &t_to * DMatrix::from_column_slice(3, 1, &[t.x, t.y, 1.0]);
-        let (x, y) = (q[0] / q[2], q[1] / q[2]);
-        for k in 0..3 {
-            a[(2 * i, k)] = p[k];
-            a[(2 * i, 6 + k)] = -x * p[k];
-            a[(2 * i + 1, 3 + k)] = p[k];
-            a[(2 * i + 1, 6 + k)] = -y * p[k];
-        }
-    }
-    let svd = a.svd(false, true);
-    let v_t = svd.v_t.ok_or("SVD failed")?;
-    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
-    order.sort_by(|&i, &j| svd.singular_values[i].total_cmp(&svd.singular_values[j]));
-    if svd.singular_values[order[1]] <= 1e-10 * svd.singular_values.max() {
-        return Err("degenerate fiducial configuration (3 or more beads in a line?): the homography is not unique".into());
-    }
-    let h = v_t.row(order[0]);
-    let hn = DMatrix::from_row_slice(3, 3, &h.iter().copied().collect::<Vec<_>>());
-    let t_to_inv = t_to.try_inverse().ok_or("singular plane normalisation")?;
-    let m = t_to_inv * hn * t_from;
+    let from: Vec<Vec<f64>> = from.iter().map(|p| p.to_array().to_vec()).collect();
+    let m = projective_dlt(&from, to, "degenerate fiducial configuration (3 or more beads in a line?): the homography is not unique")?;
     let m = &m / m.norm();
     Ok(DMat3::from_cols(
         DVec3::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]),
