@@ -7,7 +7,7 @@ mod common;
 
 use common::{hashes, root, run_scenario};
 
-const GOLDEN: &[&str] = &["small_biplanar"];
+const GOLDEN: &[&str] = &["small_biplanar", "small_uniplanar"];
 
 #[test]
 fn golden_scenarios_reproduce_their_hashes() {
