@@ -12,7 +12,7 @@ use crate::diagnostic::Diagnostic;
 use crate::expand::{self, Run};
 use crate::noise::{self, NoiseKey};
 use crate::output::atomic::{StagedDir, write_atomic};
-use crate::output::exr::{ExrAttr, encode_exr};
+use crate::output::exr::{ExrAttr, encode_exr_with};
 use crate::output::tiff::encode_tiff;
 use crate::output::{self, FileRef, ImageTruth, Manifest, ManifestFile, ProjectedMarker, Truth};
 use crate::phantom::{self, PhantomModel};
@@ -252,7 +252,7 @@ fn encode_image(s: &Scenario, run: &Run, exposure: &str, det: &expand::DetectorS
                 ("rsasim_bpp", ExrAttr::I32(det.bpp as i32)),
                 ("rsasim_program", ExrAttr::Text(output::program())),
             ];
-            encode_exr(w, h, &values, &attrs).expect("in-memory EXR encoding of a valid image")
+            encode_exr_with(w, h, &values, &attrs, s.output.exr_compression).expect("in-memory EXR encoding of a valid image")
         }
     }
 }

@@ -15,8 +15,6 @@
 use ::exr::meta::attribute::{AttributeValue, Text};
 use ::exr::meta::header::standard_names;
 use ::exr::prelude::*;
-use schemars::JsonSchema;
-use serde::{Deserialize, Serialize};
 use std::io::Cursor;
 use std::result::Result;
 
@@ -31,22 +29,7 @@ pub enum ExrAttr {
     I32(i32),
 }
 
-/// How EXR scanline blocks are compressed. All options are lossless.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum ExrCompression {
-    /// No compression (`NO_COMPRESSION`), one scanline per block: fastest, 4 bytes per pixel.
-    None,
-    /// Run-length coding (`RLE_COMPRESSION`), one scanline per block: fast, but gains little on
-    /// noisy images.
-    Rle,
-    /// zlib over blocks of 16 scanlines (`ZIP_COMPRESSION`, the `exr` crate's `ZIP16`), with
-    /// OpenEXR's byte reordering and delta predictor. The default: the smallest files.
-    #[default]
-    Zip,
-    /// zlib over single scanlines (`ZIPS_COMPRESSION`, the `exr` crate's `ZIP1`).
-    Zips,
-}
+pub use crate::scenario::ExrCompression;
 
 impl ExrCompression {
     fn to_exr(self) -> Compression {

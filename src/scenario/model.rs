@@ -104,6 +104,23 @@ pub enum TiffCompression {
     Packbits,
 }
 
+/// How EXR scanline blocks are compressed. All options are lossless.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ExrCompression {
+    /// No compression (`NO_COMPRESSION`), one scanline per block: fastest, 4 bytes per pixel.
+    None,
+    /// Run-length coding (`RLE_COMPRESSION`), one scanline per block: fast, but gains little on
+    /// noisy images.
+    Rle,
+    /// zlib over blocks of 16 scanlines (`ZIP_COMPRESSION`, the `exr` crate's `ZIP16`), with
+    /// OpenEXR's byte reordering and delta predictor. The default: the smallest files.
+    #[default]
+    Zip,
+    /// zlib over single scanlines (`ZIPS_COMPRESSION`, the `exr` crate's `ZIP1`).
+    Zips,
+}
+
 /// What files a run writes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -114,6 +131,9 @@ pub struct OutputOptions {
     /// TIFF compression. Default `"deflate"`.
     #[serde(default)]
     pub tiff_compression: TiffCompression,
+    /// EXR compression. Default `"zip"`.
+    #[serde(default)]
+    pub exr_compression: ExrCompression,
 }
 
 impl OutputOptions {
@@ -124,7 +144,11 @@ impl OutputOptions {
 
 impl Default for OutputOptions {
     fn default() -> Self {
-        OutputOptions { formats: Self::default_formats(), tiff_compression: TiffCompression::default() }
+        OutputOptions {
+            formats: Self::default_formats(),
+            tiff_compression: TiffCompression::default(),
+            exr_compression: ExrCompression::default(),
+        }
     }
 }
 
