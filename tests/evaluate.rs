@@ -292,3 +292,15 @@ fn the_command_writes_every_report_format() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("valid formats"));
 }
+
+#[test]
+fn a_folder_that_is_not_an_output_folder_is_named_as_such() {
+    let tmp = tempfile::tempdir().unwrap();
+    for cmd in ["evaluate", "reconstruct"] {
+        let o = rsasim(&[cmd, tmp.path().to_str().unwrap()], &[]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {stderr}");
+        assert!(stderr.contains("not an rsasim output folder: scenario.toml, manifest.json, runs missing"), "{cmd}: {stderr}");
+        assert!(stderr.contains("--out DIR"), "{cmd}: {stderr}");
+    }
+}

@@ -49,6 +49,7 @@ pub struct Options {
 /// Scores every run of the output folder `out`. Runs without results are listed as excluded;
 /// malformed results are errors naming file, line and field.
 pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>> {
+    output::check_output_folder(out)?;
     let truths = load_truths(out)?;
     let measurements: BTreeMap<String, RunMeasurement> = match &options.measured {
         MeasuredSource::Csv(file) => load_measured_csv(file, &truths)?,

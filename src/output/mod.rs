@@ -12,6 +12,21 @@ pub use manifest::{MANIFEST_FORMAT, Manifest, ManifestFile};
 pub use measured::{MEASURED_FORMAT, Measured};
 pub use truth::{FileRef, ImageTruth, ProjectedMarker, TRUTH_FORMAT, Truth};
 
+/// Checks that `out` is a folder written by `rsasim SCENARIO.toml` (it holds `scenario.toml`,
+/// `manifest.json` and `runs/`), so commands that read one say so instead of failing on a file.
+pub fn check_output_folder(out: &std::path::Path) -> Result<(), Vec<crate::diagnostic::Diagnostic>> {
+    let missing: Vec<&str> =
+        ["scenario.toml", "manifest.json", "runs"].into_iter().filter(|name| !out.join(name).exists()).collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(vec![crate::diagnostic::Diagnostic::file_error(
+        out,
+        format!("not an rsasim output folder: {} missing", missing.join(", ")),
+    )
+    .with_help("give the folder that `rsasim SCENARIO.toml --out DIR` wrote (by default out/<scenario name>)")])
+}
+
 /// `rsasim <version>`, as written into every file.
 pub fn program() -> String {
     format!("rsasim {}", env!("CARGO_PKG_VERSION"))

@@ -37,6 +37,7 @@ pub struct Setup {
 
 /// Reads `OUT/scenario.toml` and the bead tables of `OUT/phantoms/`.
 pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
+    crate::output::check_output_folder(out)?;
     let loaded = scenario::load(&out.join("scenario.toml"))?;
     let mut nominal_scenario = loaded.scenario.clone();
     for s in &mut nominal_scenario.sources {
