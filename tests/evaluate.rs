@@ -9,13 +9,12 @@ use common::{rsasim, run_scenario, truths};
 use rsasim::evaluate::stats::{Cell, Confidence, Significance};
 use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
-use rsasim::geometry::{DMat3, DVec3, rotation_xyz_deg};
+use rsasim::geometry::{DMat3, rotation_from_rows, rotation_rows, rotation_xyz_deg};
 use rsasim::output::Truth;
 use rsasim::output::measured::{Measured, MeasuredPoint, MeasuredPose};
 
 fn rows(m: DMat3) -> [[f64; 3]; 3] {
-    let t = m.transpose();
-    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+    rotation_rows(&m)
 }
 
 /// A simulated output folder (tiny images, 2 levels × 20 runs) in a temporary directory.
@@ -190,7 +189,7 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
         for (kind, list) in [("detector", &m.detectors), ("phantom", &m.phantoms)] {
             for e in list {
                 let r = e.rotation.unwrap();
-                let mat = DMat3::from_cols(DVec3::from_array(r[0]), DVec3::from_array(r[1]), DVec3::from_array(r[2])).transpose();
+                let mat = rotation_from_rows(r);
                 let q = glam::DQuat::from_mat3(&mat);
                 let p = e.position_mm;
                 csv += &format!("{},{kind},{},{},{},{},{},{},{},{}\n", m.run, e.id, p[0], p[1], p[2], q.w, q.x, q.y, q.z);

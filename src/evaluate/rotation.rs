@@ -1,6 +1,8 @@
 //! Checking and repairing reconstructed rotation matrices.
 
-use glam::{DMat3, DQuat, DVec3};
+use glam::{DMat3, DQuat};
+
+use crate::geometry::rotation_from_rows;
 
 /// Largest deviation from orthonormality that is silently repaired: `max |RᵀR − I|`.
 pub const REPAIR_TOLERANCE: f64 = 1e-6;
@@ -11,7 +13,7 @@ pub fn checked_rotation(rows: [[f64; 3]; 3]) -> Result<DMat3, String> {
     if rows.iter().flatten().any(|x| !x.is_finite()) {
         return Err("the rotation has a NaN or infinite entry".into());
     }
-    let m = DMat3::from_cols(DVec3::from_array(rows[0]), DVec3::from_array(rows[1]), DVec3::from_array(rows[2])).transpose();
+    let m = rotation_from_rows(rows);
     let deviation = orthonormality_deviation(&m);
     if deviation > REPAIR_TOLERANCE {
         return Err(format!(
@@ -56,11 +58,10 @@ pub fn rotation_from_quaternion(w: f64, x: f64, y: f64, z: f64) -> Result<DMat3,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::rotation_xyz_deg;
+    use crate::geometry::{rotation_rows, rotation_xyz_deg};
 
     fn rows(m: DMat3) -> [[f64; 3]; 3] {
-        let t = m.transpose();
-        [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+        rotation_rows(&m)
     }
 
     #[test]

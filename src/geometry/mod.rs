@@ -11,5 +11,5 @@ mod pose;
 
 pub use detector::DetectorFrame;
 pub use glam::{DMat3, DVec3};
-pub use pose::{Pose, euler_xyz_deg, rotation_xyz_deg};
+pub use pose::{Pose, euler_xyz_deg, rotation_from_rows, rotation_rows, rotation_xyz_deg};
 pub(crate) use pose::{mat3_rows_serde, vec3_serde};

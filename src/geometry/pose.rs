@@ -87,6 +87,17 @@ pub fn euler_xyz_deg(m: &DMat3) -> [f64; 3] {
     [a.to_degrees(), b.to_degrees(), c.to_degrees()]
 }
 
+/// A rotation matrix as three rows, the form every JSON file of rsasim uses.
+pub fn rotation_rows(m: &DMat3) -> [[f64; 3]; 3] {
+    let t = m.transpose();
+    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+}
+
+/// The matrix whose rows are `rows` (the inverse of [`rotation_rows`]).
+pub fn rotation_from_rows(rows: [[f64; 3]; 3]) -> DMat3 {
+    DMat3::from_cols(DVec3::from_array(rows[0]), DVec3::from_array(rows[1]), DVec3::from_array(rows[2])).transpose()
+}
+
 /// Serde for a `DVec3` as a plain `[x, y, z]` array.
 pub(crate) mod vec3_serde {
     use glam::DVec3;
@@ -103,18 +114,15 @@ pub(crate) mod vec3_serde {
 
 /// Serde for a `DMat3` as three rows.
 pub(crate) mod mat3_rows_serde {
-    use glam::{DMat3, DVec3};
+    use glam::DMat3;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     pub fn serialize<S: Serializer>(m: &DMat3, s: S) -> Result<S::Ok, S::Error> {
-        let t = m.transpose();
-        [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()].serialize(s)
+        super::rotation_rows(m).serialize(s)
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<DMat3, D::Error> {
-        let rows = <[[f64; 3]; 3]>::deserialize(d)?;
-        Ok(DMat3::from_cols(DVec3::from_array(rows[0]), DVec3::from_array(rows[1]), DVec3::from_array(rows[2]))
-            .transpose())
+        <[[f64; 3]; 3]>::deserialize(d).map(super::rotation_from_rows)
     }
 }
 

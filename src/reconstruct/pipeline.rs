@@ -14,7 +14,7 @@ use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::selvik::calibrate_selvik;
 use crate::expand::DetectorState;
-use crate::geometry::{DetectorFrame, rotation_xyz_deg};
+use crate::geometry::{DetectorFrame, rotation_rows, rotation_xyz_deg};
 use crate::scenario::PlateRole;
 use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
 
@@ -116,11 +116,10 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) 
         if !measured.sources.iter().any(|s| s.id == det.source) {
             measured.sources.push(MeasuredPoint { id: det.source.clone(), position_mm: c.beamline.source_mm.to_array(), quality: quality.clone() });
         }
-        let rot = c.beamline.detector.rotation.transpose();
         measured.detectors.push(MeasuredPose {
             id: id.clone(),
             position_mm: c.beamline.detector.position_mm.to_array(),
-            rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
+            rotation: Some(rotation_rows(&c.beamline.detector.rotation)),
             markers: vec![],
             quality,
         });
@@ -259,11 +258,10 @@ fn find_model(
     if fit.condition_number > CN_LIMIT {
         flags.push(format!("CN > {CN_LIMIT}"));
     }
-    let rot = fit.pose.rotation.transpose();
     Ok(MeasuredPose {
         id: String::new(),
         position_mm: fit.pose.position_mm.to_array(),
-        rotation: Some([rot.x_axis.to_array(), rot.y_axis.to_array(), rot.z_axis.to_array()]),
+        rotation: Some(rotation_rows(&fit.pose.rotation)),
         markers: vec![],
         quality: Some(FitQuality {
             beads_used: Some(found.beads_used),
