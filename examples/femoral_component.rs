@@ -46,7 +46,10 @@ fn main() -> ExitCode {
     );
     for bead in &component.beads {
         let [x, y, z] = bead.position_mm;
-        println!("[[phantoms.mesh.beads]]\nid = \"{}\"\nposition_mm = [{x:?}, {y:?}, {z:?}]\ndiameter_mm = {:?}\n", bead.id, bead.diameter_mm);
+        println!(
+            "[[phantoms.mesh.beads]]\nid = \"{}\"\nposition_mm = [{x:?}, {y:?}, {z:?}]\ndiameter_mm = {:?}\n",
+            bead.id, bead.diameter_mm
+        );
     }
     ExitCode::SUCCESS
 }

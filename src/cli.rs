@@ -11,7 +11,12 @@ use rsasim::reconstruct::Method;
 /// Run a scenario: `rsasim scenarios/biplanar.toml` writes images, truth.json and manifest.json
 /// for every run of its protocol into out/<scenario name>/.
 #[derive(Debug, Parser)]
-#[command(name = "rsasim", version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+#[command(
+    name = "rsasim",
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub struct Cli {
     /// A subcommand; without one, rsasim runs the scenario given.
     #[command(subcommand)]
@@ -54,7 +59,12 @@ pub enum Command {
         /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/).
         out: PathBuf,
         /// File name of the results in every run folder (schemas/measured.schema.json).
-        #[arg(long, default_value = "measured.json", value_name = "FILE_NAME", conflicts_with = "csv")]
+        #[arg(
+            long,
+            default_value = "measured.json",
+            value_name = "FILE_NAME",
+            conflicts_with = "csv"
+        )]
         measured: String,
         /// Read every run's results from one CSV long table instead (columns in the README).
         #[arg(long, value_name = "FILE")]
@@ -66,7 +76,12 @@ pub enum Command {
         #[arg(long, default_value = "one", value_parser = ["one", "two"])]
         sided: String,
         /// Report formats, comma-separated: md, csv, tex, html.
-        #[arg(long, default_value = "md,csv,tex,html", value_delimiter = ',', value_name = "LIST")]
+        #[arg(
+            long,
+            default_value = "md,csv,tex,html",
+            value_delimiter = ',',
+            value_name = "LIST"
+        )]
         format: Vec<String>,
         /// Folder the reports are written to. Default: OUT/report.
         #[arg(long, value_name = "DIR")]
@@ -98,5 +113,11 @@ pub enum Command {
 
 /// `dlt` | `selvik` → [`Method`], listing both in `--help`.
 fn method_parser() -> impl TypedValueParser<Value = Method> {
-    PossibleValuesParser::new(["dlt", "selvik"]).map(|s| if s == "selvik" { Method::Selvik } else { Method::Dlt })
+    PossibleValuesParser::new(["dlt", "selvik"]).map(|s| {
+        if s == "selvik" {
+            Method::Selvik
+        } else {
+            Method::Dlt
+        }
+    })
 }

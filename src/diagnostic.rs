@@ -129,7 +129,11 @@ impl fmt::Display for Diagnostic {
         write!(f, ": {}", self.message)?;
         if let (Some(src), Some((line, col))) = (&self.source_line, self.line_col) {
             let gutter = line.to_string().len();
-            write!(f, "\n{:gutter$} |\n{line} | {src}\n{:gutter$} | {:>col$}", "", "", "^")?;
+            write!(
+                f,
+                "\n{:gutter$} |\n{line} | {src}\n{:gutter$} | {:>col$}",
+                "", "", "^"
+            )?;
         }
         if let Some(help) = &self.help {
             write!(f, "\n  = help: {help}")?;
@@ -154,7 +158,11 @@ impl Locator {
         // Scenario files are small and parsed once per process.
         let leaked: &'static str = Box::leak(text.to_string().into_boxed_str());
         let root = DeTable::parse(leaked).ok();
-        Locator { file: file.to_path_buf(), text: text.to_string(), root }
+        Locator {
+            file: file.to_path_buf(),
+            text: text.to_string(),
+            root,
+        }
     }
 
     /// The file this locator indexes.
@@ -193,10 +201,15 @@ impl Locator {
         fn walk(v: &DeValue, offset: usize, path: &mut KeyPath) -> bool {
             type Child<'a> = (Segment, Option<Range<usize>>, &'a Spanned<DeValue<'a>>);
             let children: Vec<Child> = match v {
-                DeValue::Table(t) => {
-                    t.iter().map(|(k, v)| (Segment::Key(k.get_ref().to_string()), Some(k.span()), v)).collect()
-                }
-                DeValue::Array(a) => a.iter().enumerate().map(|(i, v)| (Segment::Index(i), None, v)).collect(),
+                DeValue::Table(t) => t
+                    .iter()
+                    .map(|(k, v)| (Segment::Key(k.get_ref().to_string()), Some(k.span()), v))
+                    .collect(),
+                DeValue::Array(a) => a
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| (Segment::Index(i), None, v))
+                    .collect(),
                 _ => return false,
             };
             for (seg, key_span, child) in children {
@@ -224,7 +237,11 @@ impl Locator {
         let line = before.matches('\n').count() + 1;
         let line_start = before.rfind('\n').map_or(0, |i| i + 1);
         let col = self.text[line_start..offset].chars().count() + 1;
-        let line_text = self.text[line_start..].lines().next().unwrap_or("").to_string();
+        let line_text = self.text[line_start..]
+            .lines()
+            .next()
+            .unwrap_or("")
+            .to_string();
         ((line, col), line_text)
     }
 
@@ -259,7 +276,11 @@ impl Locator {
     }
 
     /// A diagnostic at a byte span (a parse error), with the key path found there.
-    pub fn error_at_span(&self, span: Option<Range<usize>>, message: impl Into<String>) -> Diagnostic {
+    pub fn error_at_span(
+        &self,
+        span: Option<Range<usize>>,
+        message: impl Into<String>,
+    ) -> Diagnostic {
         let (line_col, source_line, key_path) = match span {
             Some(span) => {
                 let (lc, text) = self.line_col(span.start);
@@ -283,7 +304,8 @@ impl Locator {
 mod tests {
     use super::*;
 
-    const DOC: &str = "name = \"x\"\n\n[[detectors]]\nid = \"a\"\n\n[[detectors]]\nid = \"b\"\nbpp = 17\n";
+    const DOC: &str =
+        "name = \"x\"\n\n[[detectors]]\nid = \"a\"\n\n[[detectors]]\nid = \"b\"\nbpp = 17\n";
 
     #[test]
     fn key_paths_print_like_toml_access() {
@@ -298,7 +320,10 @@ mod tests {
         assert_eq!(d.line_col, Some((8, 7)));
         assert_eq!(d.source_line.as_deref(), Some("bpp = 17"));
         // A missing key points at its table.
-        let d = loc.error(KeyPath::root().key("detectors").index(0).key("source"), "missing");
+        let d = loc.error(
+            KeyPath::root().key("detectors").index(0).key("source"),
+            "missing",
+        );
         assert_eq!(d.line_col.map(|lc| lc.0), Some(3));
     }
 
@@ -313,10 +338,19 @@ mod tests {
     fn display_names_file_line_path_and_help() {
         let loc = Locator::new(Path::new("s.toml"), DOC);
         let d = loc
-            .error(KeyPath::root().key("detectors").index(1).key("bpp"), "bpp 17 is out of range")
+            .error(
+                KeyPath::root().key("detectors").index(1).key("bpp"),
+                "bpp 17 is out of range",
+            )
             .with_help("bpp must be 1..=16");
         let s = d.to_string();
-        assert!(s.starts_with("error: s.toml:8:7: `detectors[1].bpp`: bpp 17 is out of range"), "{s}");
-        assert!(s.contains("8 | bpp = 17") && s.contains("help: bpp must be 1..=16"), "{s}");
+        assert!(
+            s.starts_with("error: s.toml:8:7: `detectors[1].bpp`: bpp 17 is out of range"),
+            "{s}"
+        );
+        assert!(
+            s.contains("8 | bpp = 17") && s.contains("help: bpp must be 1..=16"),
+            "{s}"
+        );
     }
 }

@@ -1,13 +1,13 @@
 //! rsasim: a Radio Stereometric Analysis simulator.
 pub mod diagnostic;
-pub mod geometry;
-pub mod scenario;
-pub mod phantom;
-pub mod random;
+pub mod evaluate;
 pub mod expand;
-pub mod trace;
+pub mod geometry;
 pub mod noise;
 pub mod output;
-pub mod evaluate;
+pub mod phantom;
+pub mod random;
 pub mod reconstruct;
+pub mod scenario;
 pub mod simulate;
+pub mod trace;

@@ -25,13 +25,22 @@ fn main() -> ExitCode {
             );
         }),
         Some(Command::Expand { scenario }) => prepare(&scenario).map(|plan| {
-            println!("{}", serde_json::to_string_pretty(&plan.runs).expect("runs serialise"));
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&plan.runs).expect("runs serialise")
+            );
         }),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
         Some(Command::Reconstruct { out, method }) => reconstruct(&out, method),
-        Some(Command::Evaluate { out, measured, csv, confidence, sided, format, report }) => {
-            evaluate(&out, measured, csv, confidence, &sided, &format, report)
-        }
+        Some(Command::Evaluate {
+            out,
+            measured,
+            csv,
+            confidence,
+            sided,
+            format,
+            report,
+        }) => evaluate(&out, measured, csv, confidence, &sided, &format, report),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
             prepare(&scenario).and_then(|plan| run(&plan, cli.run.out, cli.run.force))
@@ -63,12 +72,16 @@ fn report_errors(errors: &[Diagnostic]) -> u8 {
 fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), u8> {
     let out = out.unwrap_or_else(|| std::path::Path::new("out").join(&plan.loaded.scenario.name));
     if out.exists() && !force {
-        eprintln!("error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere", out.display());
+        eprintln!(
+            "error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere",
+            out.display()
+        );
         return Err(2);
     }
     let bar = ProgressBar::new(plan.image_count() as u64);
     bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} {bar:40} {pos}/{len} images ({eta} left)").expect("valid template"),
+        ProgressStyle::with_template("{elapsed_precise} {bar:40} {pos}/{len} images ({eta} left)")
+            .expect("valid template"),
     );
     let start = Instant::now();
     let summary = simulate::simulate(plan, &out, force, &|| bar.inc(1)).map_err(|e| {
@@ -89,7 +102,8 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
 
 fn reconstruct(out: &std::path::Path, method: rsasim::reconstruct::Method) -> Result<(), u8> {
     let start = Instant::now();
-    let summary = rsasim::reconstruct::reconstruct(out, method).map_err(|errors| report_errors(&errors))?;
+    let summary =
+        rsasim::reconstruct::reconstruct(out, method).map_err(|errors| report_errors(&errors))?;
     for (run, why) in &summary.failed {
         eprintln!("error: run {run}: {why}");
     }
@@ -100,7 +114,11 @@ fn reconstruct(out: &std::path::Path, method: rsasim::reconstruct::Method) -> Re
         start.elapsed().as_secs_f64(),
         out.display()
     );
-    if summary.failed.is_empty() { Ok(()) } else { Err(1) }
+    if summary.failed.is_empty() {
+        Ok(())
+    } else {
+        Err(1)
+    }
 }
 
 fn evaluate(
@@ -114,23 +132,39 @@ fn evaluate(
 ) -> Result<(), u8> {
     use rsasim::evaluate::{self, MeasuredSource, Options, report, stats};
     if !(confidence > 0.0 && confidence < 1.0) {
-        eprintln!("error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95");
+        eprintln!(
+            "error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95"
+        );
         return Err(2);
     }
-    let formats: Vec<report::Format> = formats.iter().map(|f| f.parse()).collect::<Result<_, report::ParseFormatError>>().map_err(|e| {
-        eprintln!("error: --format: {e}");
-        2
-    })?;
-    let sided = if sided == "two" { stats::Sided::Two } else { stats::Sided::One };
+    let formats: Vec<report::Format> = formats
+        .iter()
+        .map(|f| f.parse())
+        .collect::<Result<_, report::ParseFormatError>>()
+        .map_err(|e| {
+            eprintln!("error: --format: {e}");
+            2
+        })?;
+    let sided = if sided == "two" {
+        stats::Sided::Two
+    } else {
+        stats::Sided::One
+    };
     let options = Options {
         measured: csv.map_or(MeasuredSource::PerRun(measured), MeasuredSource::Csv),
-        confidence: stats::Confidence { level: confidence, sided },
+        confidence: stats::Confidence {
+            level: confidence,
+            sided,
+        },
     };
     let start = Instant::now();
     let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
     let dir = report_dir.unwrap_or_else(|| out.join("report"));
     let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
-        eprintln!("error: writing the reports into {} failed: {e}", dir.display());
+        eprintln!(
+            "error: writing the reports into {} failed: {e}",
+            dir.display()
+        );
         1
     })?;
     for e in &result.excluded {
@@ -141,7 +175,11 @@ fn evaluate(
         result.runs_scored,
         result.excluded.len(),
         start.elapsed().as_secs_f64(),
-        written.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     Ok(())
 }
@@ -161,8 +199,14 @@ fn schema(name: &str, write_dir: Option<&std::path::Path>) -> Result<(), u8> {
             }
         }
         None => {
-            let (_, s) = schemas.iter().find(|(n, _)| *n == name).expect("clap restricts the names");
-            println!("{}", serde_json::to_string_pretty(s).expect("schema serialises"));
+            let (_, s) = schemas
+                .iter()
+                .find(|(n, _)| *n == name)
+                .expect("clap restricts the names");
+            println!(
+                "{}",
+                serde_json::to_string_pretty(s).expect("schema serialises")
+            );
         }
     }
     Ok(())

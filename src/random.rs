@@ -30,10 +30,12 @@ mod tests {
 
     #[test]
     fn streams_are_fixed_by_their_label() {
-        let a: Vec<f64> = (0..4).map({
-            let mut r = stream("x");
-            move |_| uniform01(&mut r)
-        }).collect();
+        let a: Vec<f64> = (0..4)
+            .map({
+                let mut r = stream("x");
+                move |_| uniform01(&mut r)
+            })
+            .collect();
         let mut r = stream("x");
         assert!(a.iter().all(|&v| v == uniform01(&mut r)));
         assert!((0..1000).all(|_| (0.0..1.0).contains(&uniform01(&mut r))));

@@ -56,7 +56,12 @@ pub fn prepare_loaded(loaded: LoadedScenario) -> Result<Plan, Vec<Diagnostic>> {
     }
     let mut all_warnings = loaded.warnings.clone();
     all_warnings.extend(warnings);
-    Ok(Plan { loaded, models, runs, warnings: all_warnings })
+    Ok(Plan {
+        loaded,
+        models,
+        runs,
+        warnings: all_warnings,
+    })
 }
 
 /// What a finished simulation wrote.
@@ -71,12 +76,20 @@ pub struct Summary {
 
 /// Writes the whole protocol into `out_dir` (refused if it exists, unless `force`). `progress`
 /// is called once per finished image (exposure × detector, all formats).
-pub fn simulate(plan: &Plan, out_dir: &Path, force: bool, progress: &(dyn Fn() + Sync)) -> std::io::Result<Summary> {
+pub fn simulate(
+    plan: &Plan,
+    out_dir: &Path,
+    force: bool,
+    progress: &(dyn Fn() + Sync),
+) -> std::io::Result<Summary> {
     let staged = StagedDir::create(out_dir, force)?;
     let root = staged.path();
     let s = &plan.loaded.scenario;
-    let bvhs: Vec<Option<Arc<MeshBvh>>> =
-        plan.models.iter().map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh)))).collect();
+    let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
+        .models
+        .iter()
+        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
+        .collect();
 
     let mut files = write_phantoms(plan, root)?;
     let per_run: Vec<Vec<ManifestFile>> = plan
@@ -84,7 +97,11 @@ pub fn simulate(plan: &Plan, out_dir: &Path, force: bool, progress: &(dyn Fn() +
         .par_iter()
         .map(|run| write_run(s, &plan.models, &bvhs, run, root, progress))
         .collect::<std::io::Result<_>>()?;
-    let image_files = per_run.iter().flatten().filter(|f| !f.path.ends_with("truth.json")).count();
+    let image_files = per_run
+        .iter()
+        .flatten()
+        .filter(|f| !f.path.ends_with("truth.json"))
+        .count();
     files.extend(per_run.into_iter().flatten());
     files.sort_by(|a, b| a.path.cmp(&b.path));
 
@@ -99,7 +116,11 @@ pub fn simulate(plan: &Plan, out_dir: &Path, force: bool, progress: &(dyn Fn() +
     };
     write_atomic(&root.join("manifest.json"), &json_bytes(&manifest))?;
     let out_dir = staged.commit()?;
-    Ok(Summary { out_dir, image_files, runs: plan.runs.len() })
+    Ok(Summary {
+        out_dir,
+        image_files,
+        runs: plan.runs.len(),
+    })
 }
 
 /// Pretty JSON with a final newline.
@@ -112,11 +133,18 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
 fn manifest_entry(root: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<ManifestFile> {
     let sha256 = write_atomic(path, bytes)?;
     let rel = path.strip_prefix(root).expect("inside the output folder");
-    Ok(ManifestFile { path: slash_path(rel), sha256, bytes: bytes.len() as u64 })
+    Ok(ManifestFile {
+        path: slash_path(rel),
+        sha256,
+        bytes: bytes.len() as u64,
+    })
 }
 
 fn slash_path(p: &Path) -> String {
-    p.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
+    p.components()
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
 }
 
 /// `phantoms/`: bead tables (CSV, each phantom's local frame; the box's is the box frame) and
@@ -136,17 +164,36 @@ fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>
                     None => "",
                 };
                 let p = m.position_mm;
-                csv += &format!("{},{},{role},{},{},{},{}\n", m.id, m.plate.as_deref().unwrap_or(""), p.x, p.y, p.z, m.diameter_mm);
+                csv += &format!(
+                    "{},{},{role},{},{},{},{}\n",
+                    m.id,
+                    m.plate.as_deref().unwrap_or(""),
+                    p.x,
+                    p.y,
+                    p.z,
+                    m.diameter_mm
+                );
             }
-            let name = if model.mesh.is_some() { format!("{}-beads.csv", model.id) } else { format!("{}.csv", model.id) };
+            let name = if model.mesh.is_some() {
+                format!("{}-beads.csv", model.id)
+            } else {
+                format!("{}.csv", model.id)
+            };
             out.push(manifest_entry(root, &dir.join(name), csv.as_bytes())?);
         }
         if let (Some(file), Some(mesh)) = (&model.mesh_file, ph.mesh.as_mut()) {
-            let ext = file.extension().and_then(|e| e.to_str()).unwrap_or("mesh").to_ascii_lowercase();
+            let ext = file
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("mesh")
+                .to_ascii_lowercase();
             let name = format!("{}.{ext}", model.id);
             let bytes = std::fs::read(file)?;
             out.push(manifest_entry(root, &dir.join(&name), &bytes)?);
-            mesh.unit_mm = Some(mesh.unit_mm.unwrap_or_else(|| phantom::mesh_io::default_unit_mm(file)));
+            mesh.unit_mm = Some(
+                mesh.unit_mm
+                    .unwrap_or_else(|| phantom::mesh_io::default_unit_mm(file)),
+            );
             mesh.file = format!("phantoms/{name}");
         }
     }
@@ -156,7 +203,11 @@ fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>
         plan.loaded.sha256,
         toml::to_string_pretty(&resolved).expect("scenario serialises")
     );
-    out.push(manifest_entry(root, &root.join("scenario.toml"), text.as_bytes())?);
+    out.push(manifest_entry(
+        root,
+        &root.join("scenario.toml"),
+        text.as_bytes(),
+    )?);
     Ok(out)
 }
 
@@ -174,24 +225,48 @@ fn write_run(
     let mut files = Vec::new();
     let mut images = Vec::new();
     for exposure in &run.exposures {
-        let in_beam: Vec<usize> =
-            exposure.phantoms.iter().map(|id| models.iter().position(|m| &m.id == id).expect("validated phantom id")).collect();
+        let in_beam: Vec<usize> = exposure
+            .phantoms
+            .iter()
+            .map(|id| {
+                models
+                    .iter()
+                    .position(|m| &m.id == id)
+                    .expect("validated phantom id")
+            })
+            .collect();
         let mut objects = Vec::new();
         for &pi in &in_beam {
             let state = &run.phantoms[pi];
-            objects.extend(
-                state.markers.iter().map(|m| Object::Sphere { centre_mm: m.position_mm, radius_mm: m.diameter_mm / 2.0 }),
-            );
+            objects.extend(state.markers.iter().map(|m| Object::Sphere {
+                centre_mm: m.position_mm,
+                radius_mm: m.diameter_mm / 2.0,
+            }));
             if let Some(bvh) = &bvhs[pi] {
-                objects.push(Object::Mesh { bvh, pose: state.pose() });
+                objects.push(Object::Mesh {
+                    bvh,
+                    pose: state.pose(),
+                });
             }
         }
         for det in &run.detectors {
             let frame = det.frame();
             let source = run.source_of(det);
             let mut pixels = trace::render_binary(&frame, source, &objects, det.i_max());
-            let key = NoiseKey::derive(s.seed, run.noise_level_index, run.run_index, &exposure.id, &det.id);
-            noise::add_noise(&mut pixels, det.pixels[0] as usize, run.noise_level, det.i_max(), &key);
+            let key = NoiseKey::derive(
+                s.seed,
+                run.noise_level_index,
+                run.run_index,
+                &exposure.id,
+                &det.id,
+            );
+            noise::add_noise(
+                &mut pixels,
+                det.pixels[0] as usize,
+                run.noise_level,
+                det.i_max(),
+                &key,
+            );
 
             let stem = format!("{}-{}", exposure.id, det.id);
             let mut refs = Vec::new();
@@ -199,7 +274,10 @@ fn write_run(
                 let name = format!("{stem}.{}", format.extension());
                 let bytes = encode_image(s, run, &exposure.id, det, &pixels, *format);
                 let entry = manifest_entry(root, &dir.join(&name), &bytes)?;
-                refs.push(FileRef { path: name, sha256: entry.sha256.clone() });
+                refs.push(FileRef {
+                    path: name,
+                    sha256: entry.sha256.clone(),
+                });
                 files.push(entry);
             }
             let markers = in_beam
@@ -209,11 +287,23 @@ fn write_run(
                     ph.markers.iter().map(move |m| (ph, m))
                 })
                 .map(|(ph, m)| {
-                    let uv = frame.project(source, m.position_mm).expect("checked: beads lie between source and detector");
-                    ProjectedMarker { phantom: ph.id.clone(), id: m.id.clone(), pixel: [uv.x, uv.y], inside: frame.contains_pixel(uv) }
+                    let uv = frame
+                        .project(source, m.position_mm)
+                        .expect("checked: beads lie between source and detector");
+                    ProjectedMarker {
+                        phantom: ph.id.clone(),
+                        id: m.id.clone(),
+                        pixel: [uv.x, uv.y],
+                        inside: frame.contains_pixel(uv),
+                    }
                 })
                 .collect();
-            images.push(ImageTruth { exposure: exposure.id.clone(), detector: det.id.clone(), files: refs, markers });
+            images.push(ImageTruth {
+                exposure: exposure.id.clone(),
+                detector: det.id.clone(),
+                files: refs,
+                markers,
+            });
             progress();
         }
     }
@@ -224,20 +314,44 @@ fn write_run(
         run: run.clone(),
         images,
     };
-    files.push(manifest_entry(root, &dir.join("truth.json"), &json_bytes(&truth))?);
+    files.push(manifest_entry(
+        root,
+        &dir.join("truth.json"),
+        &json_bytes(&truth),
+    )?);
     Ok(files)
 }
 
-fn encode_image(s: &Scenario, run: &Run, exposure: &str, det: &expand::DetectorState, pixels: &[u16], format: ImageFormat) -> Vec<u8> {
+fn encode_image(
+    s: &Scenario,
+    run: &Run,
+    exposure: &str,
+    det: &expand::DetectorState,
+    pixels: &[u16],
+    format: ImageFormat,
+) -> Vec<u8> {
     let [w, h] = det.pixels;
     match format {
         ImageFormat::Tiff => {
             let description = format!(
                 "rsasim scenario={} run={} noise_level={} exposure={exposure} detector={} pixel_pitch_mm={}x{} bpp={}",
-                s.name, run.id, run.noise_level, det.id, det.pixel_pitch_mm[0], det.pixel_pitch_mm[1], det.bpp
+                s.name,
+                run.id,
+                run.noise_level,
+                det.id,
+                det.pixel_pitch_mm[0],
+                det.pixel_pitch_mm[1],
+                det.bpp
             );
-            encode_tiff(w, h, pixels, s.output.tiff_compression, &description, &output::program())
-                .expect("in-memory TIFF encoding of a valid image")
+            encode_tiff(
+                w,
+                h,
+                pixels,
+                s.output.tiff_compression,
+                &description,
+                &output::program(),
+            )
+            .expect("in-memory TIFF encoding of a valid image")
         }
         ImageFormat::Exr => {
             let values: Vec<f32> = pixels.iter().map(|&p| p as f32).collect();
@@ -247,12 +361,19 @@ fn encode_image(s: &Scenario, run: &Run, exposure: &str, det: &expand::DetectorS
                 ("rsasim_noise_level", ExrAttr::F64(run.noise_level)),
                 ("rsasim_exposure", ExrAttr::Text(exposure.to_string())),
                 ("rsasim_detector", ExrAttr::Text(det.id.clone())),
-                ("rsasim_pixel_pitch_x_mm", ExrAttr::F64(det.pixel_pitch_mm[0])),
-                ("rsasim_pixel_pitch_y_mm", ExrAttr::F64(det.pixel_pitch_mm[1])),
+                (
+                    "rsasim_pixel_pitch_x_mm",
+                    ExrAttr::F64(det.pixel_pitch_mm[0]),
+                ),
+                (
+                    "rsasim_pixel_pitch_y_mm",
+                    ExrAttr::F64(det.pixel_pitch_mm[1]),
+                ),
                 ("rsasim_bpp", ExrAttr::I32(det.bpp as i32)),
                 ("rsasim_program", ExrAttr::Text(output::program())),
             ];
-            encode_exr_with(w, h, &values, &attrs, s.output.exr_compression).expect("in-memory EXR encoding of a valid image")
+            encode_exr_with(w, h, &values, &attrs, s.output.exr_compression)
+                .expect("in-memory EXR encoding of a valid image")
         }
     }
 }

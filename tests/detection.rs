@@ -15,14 +15,27 @@ fn beads_are_found_with_sub_pixel_centroids_at_every_noise_level() {
     for (dir, truth) in truths(&out) {
         let (mut expected, mut found, mut errors) = (0, 0, Vec::new());
         for image in &truth.images {
-            let det = truth.run.detectors.iter().find(|d| d.id == image.detector).unwrap();
+            let det = truth
+                .run
+                .detectors
+                .iter()
+                .find(|d| d.id == image.detector)
+                .unwrap();
             let (w, _, px) = read_tiff(&dir.join(&image.files[0].path));
             // Bead-sized blobs, as the reconstruction keeps them.
-            let found_blobs: Vec<_> = blobs(&px, w as usize, det.i_max()).into_iter().filter(|b| (6..=40).contains(&b.area)).collect();
+            let found_blobs: Vec<_> = blobs(&px, w as usize, det.i_max())
+                .into_iter()
+                .filter(|b| (6..=40).contains(&b.area))
+                .collect();
             let centres: Vec<[f64; 2]> = image.markers.iter().map(|m| m.pixel).collect();
             for m in image.markers.iter().filter(|m| m.inside) {
                 // Beads whose blobs cannot touch another bead's (more than two blob diameters apart).
-                if centres.iter().filter(|c| (c[0] - m.pixel[0]).hypot(c[1] - m.pixel[1]) < 12.0).count() > 1 {
+                if centres
+                    .iter()
+                    .filter(|c| (c[0] - m.pixel[0]).hypot(c[1] - m.pixel[1]) < 12.0)
+                    .count()
+                    > 1
+                {
                     continue;
                 }
                 expected += 1;
@@ -45,8 +58,16 @@ fn beads_are_found_with_sub_pixel_centroids_at_every_noise_level() {
             rate * 100.0
         );
         assert!(expected > 200, "{expected}");
-        assert_eq!(found, expected, "noise {}: every isolated bead is found", truth.run.noise_level);
+        assert_eq!(
+            found, expected,
+            "noise {}: every isolated bead is found",
+            truth.run.noise_level
+        );
         // 1 mm beads are 4–5 px blobs: one ray per pixel quantises a centroid by up to ~0.3 px.
-        assert!(mean < 0.2 && max < 0.4, "noise {}: mean {mean}, max {max}", truth.run.noise_level);
+        assert!(
+            mean < 0.2 && max < 0.4,
+            "noise {}: mean {mean}, max {max}",
+            truth.run.noise_level
+        );
     }
 }

@@ -25,12 +25,17 @@ fn simulated() -> (tempfile::TempDir, PathBuf) {
     (tmp, out)
 }
 
-
 /// A deterministic standard normal sample per run (Box–Muller over a simple LCG): scatter of known SD.
 fn normal(k: u64) -> f64 {
-    let lcg = |x: u64| x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let lcg = |x: u64| {
+        x.wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407)
+    };
     let (a, b) = (lcg(k + 1), lcg(lcg(k + 1)));
-    let (u1, u2) = (((a >> 11) as f64 + 1.0) / (1u64 << 53) as f64, (b >> 11) as f64 / (1u64 << 53) as f64);
+    let (u1, u2) = (
+        ((a >> 11) as f64 + 1.0) / (1u64 << 53) as f64,
+        (b >> 11) as f64 / (1u64 << 53) as f64,
+    );
     (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }
 
@@ -47,16 +52,34 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
             .sources
             .iter()
             .map(|s| {
-                let p = if s.id == "tube2" { s.position_mm + det2.rotation.x_axis * (0.2 * normal(k as u64)) } else { s.position_mm };
-                MeasuredPoint { id: s.id.clone(), position_mm: p.to_array(), quality: None }
+                let p = if s.id == "tube2" {
+                    s.position_mm + det2.rotation.x_axis * (0.2 * normal(k as u64))
+                } else {
+                    s.position_mm
+                };
+                MeasuredPoint {
+                    id: s.id.clone(),
+                    position_mm: p.to_array(),
+                    quality: None,
+                }
             })
             .collect(),
         detectors: run
             .detectors
             .iter()
             .map(|d| {
-                let p = if d.id == "det1" { d.position_mm + d.rotation.z_axis * 0.10 } else { d.position_mm };
-                MeasuredPose { id: d.id.clone(), position_mm: p.to_array(), rotation: Some(rows(d.rotation)), markers: vec![], quality: None }
+                let p = if d.id == "det1" {
+                    d.position_mm + d.rotation.z_axis * 0.10
+                } else {
+                    d.position_mm
+                };
+                MeasuredPose {
+                    id: d.id.clone(),
+                    position_mm: p.to_array(),
+                    rotation: Some(rows(d.rotation)),
+                    markers: vec![],
+                    quality: None,
+                }
             })
             .collect(),
         phantoms: run
@@ -75,7 +98,10 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
 }
 
 fn table<'a>(r: &'a Report, id: &str) -> &'a Table {
-    r.tables.iter().find(|t| t.id == id).unwrap_or_else(|| panic!("no table {id}"))
+    r.tables
+        .iter()
+        .find(|t| t.id == id)
+        .unwrap_or_else(|| panic!("no table {id}"))
 }
 
 fn cell(t: &Table, level: usize, group: &str, column: &str) -> Cell {
@@ -92,7 +118,10 @@ fn cell(t: &Table, level: usize, group: &str, column: &str) -> Cell {
 }
 
 fn options() -> Options {
-    Options { measured: MeasuredSource::PerRun("measured.json".into()), confidence: Confidence::default() }
+    Options {
+        measured: MeasuredSource::PerRun("measured.json".into()),
+        confidence: Confidence::default(),
+    }
 }
 
 #[test]
@@ -102,12 +131,19 @@ fn tables_show_exactly_the_known_errors() {
     let mut mtpm_by_hand: Vec<Vec<f64>> = vec![vec![], vec![]];
     let turn = rotation_xyz_deg([0.0, 0.0, 0.5]);
     for (k, (dir, truth)) in truths(&out).iter().enumerate() {
-        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap()).unwrap();
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap(),
+        )
+        .unwrap();
         let level = truth.run.noise_level_index as usize;
         scatter[level].push(0.2 * normal(k as u64));
         // Each bead moves by (Rz(0.5°) − I)·(x − t): the largest such move is the run's MTPM.
         let femur = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
-        let moves = femur.markers.iter().map(|m| (turn * (m.position_mm - femur.position_mm) - (m.position_mm - femur.position_mm)).length());
+        let moves = femur.markers.iter().map(|m| {
+            (turn * (m.position_mm - femur.position_mm) - (m.position_mm - femur.position_mm))
+                .length()
+        });
         mtpm_by_hand[level].push(moves.fold(0.0, f64::max));
     }
     let report = evaluate(&out, &options()).unwrap_or_else(|e| panic!("{e:?}"));
@@ -118,7 +154,10 @@ fn tables_show_exactly_the_known_errors() {
         let det1 = table(&report, "detector-det1");
         let s = cell(det1, level, "position", "s");
         assert_eq!(s.n, 20);
-        assert!((s.trueness - 0.10).abs() < 1e-9 && s.precision < 1e-9, "{s:?}");
+        assert!(
+            (s.trueness - 0.10).abs() < 1e-9 && s.precision < 1e-9,
+            "{s:?}"
+        );
         assert_eq!(s.significance, Significance::Positive);
         for c in ["r", "c"] {
             assert!(cell(det1, level, "position", c).trueness.abs() < 1e-9);
@@ -126,7 +165,10 @@ fn tables_show_exactly_the_known_errors() {
         // The femur: +0.5° about z (γ), nothing else.
         let femur = table(&report, "phantom-femur");
         let g = cell(femur, level, "orientation", "γ");
-        assert!((g.trueness - 0.5).abs() < 1e-9 && g.precision < 1e-9, "{g:?}");
+        assert!(
+            (g.trueness - 0.5).abs() < 1e-9 && g.precision < 1e-9,
+            "{g:?}"
+        );
         assert!(cell(femur, level, "orientation", "α").trueness.abs() < 1e-9);
         assert!(cell(femur, level, "position", "x").trueness.abs() < 1e-9);
         // Tube 2: the scatter's own mean and τ·s/√N, by hand.
@@ -136,19 +178,41 @@ fn tables_show_exactly_the_known_errors() {
         let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         let r = cell(table(&report, "sources"), level, "tube2", "r");
         assert!((r.trueness - mean).abs() < 1e-9, "{} vs {mean}", r.trueness);
-        assert!((r.precision - 1.729133 * sd / n.sqrt()).abs() < 1e-6, "{} vs {}", r.precision, 1.729133 * sd / n.sqrt());
+        assert!(
+            (r.precision - 1.729133 * sd / n.sqrt()).abs() < 1e-6,
+            "{} vs {}",
+            r.precision,
+            1.729133 * sd / n.sqrt()
+        );
         assert!((0.1..0.3).contains(&sd), "scatter SD {sd}");
-        assert!(cell(table(&report, "sources"), level, "tube2", "s").trueness.abs() < 1e-9);
+        assert!(
+            cell(table(&report, "sources"), level, "tube2", "s")
+                .trueness
+                .abs()
+                < 1e-9
+        );
         // MTPM over the femur's beads, by hand.
         let mtpm = cell(report.mtpm.as_ref().unwrap(), level, "femur", "MTPM");
         let want = mtpm_by_hand[level].iter().sum::<f64>() / 20.0;
-        assert!((mtpm.trueness - want).abs() < 1e-9 && want > 0.1, "{mtpm:?} vs {want}");
+        assert!(
+            (mtpm.trueness - want).abs() < 1e-9 && want > 0.1,
+            "{mtpm:?} vs {want}"
+        );
     }
     // The group analysis of det1 s: every group identical → no between-level variance.
-    let a = report.group_analyses.iter().find(|g| g.table == "detector-det1" && g.parameter == "position: s").unwrap();
+    let a = report
+        .group_analyses
+        .iter()
+        .find(|g| g.table == "detector-det1" && g.parameter == "position: s")
+        .unwrap();
     assert!(a.analysis.s_l.abs() < 1e-9);
     // Two sources have r, c, s columns: each parameter is named by its group.
-    assert!(report.group_analyses.iter().any(|g| g.parameter == "tube2 (beamline det2): r"));
+    assert!(
+        report
+            .group_analyses
+            .iter()
+            .any(|g| g.parameter == "tube2 (beamline det2): r")
+    );
 }
 
 #[test]
@@ -163,16 +227,39 @@ fn missing_runs_are_excluded_and_n_follows() {
         if truth.run.id == "n0-r03" {
             m.detectors.retain(|d| d.id != "det2");
         }
-        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(&m).unwrap(),
+        )
+        .unwrap();
     }
     let report = evaluate(&out, &options()).unwrap();
     assert_eq!(report.runs_scored, 35);
-    assert_eq!(report.excluded.iter().filter(|e| e.reason.contains("no measurement")).count(), 5);
-    assert!(report.excluded.iter().any(|e| e.run == "n0-r03" && e.reason.contains("detector det2")));
+    assert_eq!(
+        report
+            .excluded
+            .iter()
+            .filter(|e| e.reason.contains("no measurement"))
+            .count(),
+        5
+    );
+    assert!(
+        report
+            .excluded
+            .iter()
+            .any(|e| e.run == "n0-r03" && e.reason.contains("detector det2"))
+    );
     let s = cell(table(&report, "detector-det1"), 1, "position", "s");
     assert_eq!(s.n, 15);
-    assert!((s.tau - 1.761310).abs() < 1e-5, "τ for N = 15 is t(0.95; 14) = 1.7613, got {}", s.tau);
-    assert_eq!(cell(table(&report, "detector-det2"), 0, "position", "s").n, 19);
+    assert!(
+        (s.tau - 1.761310).abs() < 1e-5,
+        "τ for N = 15 is t(0.95; 14) = 1.7613, got {}",
+        s.tau
+    );
+    assert_eq!(
+        cell(table(&report, "detector-det2"), 0, "position", "s").n,
+        19
+    );
 }
 
 #[test]
@@ -181,7 +268,11 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
     let mut csv = String::from("run,kind,id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
     for (k, (dir, truth)) in truths(&out).iter().enumerate() {
         let m = measured_with_known_errors(truth, k);
-        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(&m).unwrap(),
+        )
+        .unwrap();
         for s in &m.sources {
             let p = s.position_mm;
             csv += &format!("{},source,{},{},{},{},,,,\n", m.run, s.id, p[0], p[1], p[2]);
@@ -192,19 +283,34 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
                 let mat = rotation_from_rows(r);
                 let q = glam::DQuat::from_mat3(&mat);
                 let p = e.position_mm;
-                csv += &format!("{},{kind},{},{},{},{},{},{},{},{}\n", m.run, e.id, p[0], p[1], p[2], q.w, q.x, q.y, q.z);
+                csv += &format!(
+                    "{},{kind},{},{},{},{},{},{},{},{}\n",
+                    m.run, e.id, p[0], p[1], p[2], q.w, q.x, q.y, q.z
+                );
             }
         }
     }
     let file = tmp.path().join("results.csv");
     std::fs::write(&file, csv).unwrap();
     let from_json = evaluate(&out, &options()).unwrap();
-    let from_csv = evaluate(&out, &Options { measured: MeasuredSource::Csv(file), confidence: Confidence::default() }).unwrap();
+    let from_csv = evaluate(
+        &out,
+        &Options {
+            measured: MeasuredSource::Csv(file),
+            confidence: Confidence::default(),
+        },
+    )
+    .unwrap();
     for (a, b) in from_json.tables.iter().zip(&from_csv.tables) {
         for (ra, rb) in a.rows.iter().zip(&b.rows) {
             for (ca, cb) in ra.cells.iter().zip(&rb.cells) {
                 let (ca, cb) = (ca.as_ref().unwrap(), cb.as_ref().unwrap());
-                assert!((ca.trueness - cb.trueness).abs() < 1e-9 && (ca.precision - cb.precision).abs() < 1e-9, "{}", a.id);
+                assert!(
+                    (ca.trueness - cb.trueness).abs() < 1e-9
+                        && (ca.precision - cb.precision).abs() < 1e-9,
+                    "{}",
+                    a.id
+                );
             }
         }
     }
@@ -217,7 +323,13 @@ fn bad_results_are_named_by_file_line_and_field() {
     let all = truths(&out);
     let (dir, truth) = &all[0];
     let good = measured_with_known_errors(truth, 0);
-    let write = |m: &Measured| std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(m).unwrap()).unwrap();
+    let write = |m: &Measured| {
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(m).unwrap(),
+        )
+        .unwrap()
+    };
     let run_json = |expect: &[&str]| {
         let o = rsasim(&["evaluate", out.to_str().unwrap()], &[]);
         let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -230,19 +342,31 @@ fn bad_results_are_named_by_file_line_and_field() {
     let mut m = good.clone();
     m.detectors[1].rotation.as_mut().unwrap()[0][0] += 0.01;
     write(&m);
-    run_json(&["measured.json:50:", "`detectors[1].rotation`", "not orthonormal: max |RᵀR − I| = 9.999e-3"]);
+    run_json(&[
+        "measured.json:50:",
+        "`detectors[1].rotation`",
+        "not orthonormal: max |RᵀR − I| = 9.999e-3",
+    ]);
     // An unknown entity id.
     let mut m = good.clone();
     m.detectors[0].id = "det9".into();
     write(&m);
-    run_json(&["`detectors[0].id`", "no detector has the id `det9`", "valid detector ids: det1, det2"]);
+    run_json(&[
+        "`detectors[0].id`",
+        "no detector has the id `det9`",
+        "valid detector ids: det1, det2",
+    ]);
     // A run id that does not match its folder.
     let mut m = good.clone();
     m.run = "n9-r99".into();
     write(&m);
     run_json(&["`run`", "n9-r99"]);
     // Malformed JSON: line and column.
-    std::fs::write(dir.join("measured.json"), b"{\n  \"format\": \"rsasim-measured/1\",\n  \"run\": 3\n}").unwrap();
+    std::fs::write(
+        dir.join("measured.json"),
+        b"{\n  \"format\": \"rsasim-measured/1\",\n  \"run\": 3\n}",
+    )
+    .unwrap();
     run_json(&["measured.json:3:", "invalid JSON"]);
     std::fs::remove_file(dir.join("measured.json")).unwrap();
 
@@ -250,18 +374,43 @@ fn bad_results_are_named_by_file_line_and_field() {
     let csv = |body: &str, expect: &[&str]| {
         let file = tmp.path().join("r.csv");
         std::fs::write(&file, format!("run,kind,id,x_mm,y_mm,z_mm\n{body}")).unwrap();
-        let o = rsasim(&["evaluate", out.to_str().unwrap(), "--csv", file.to_str().unwrap()], &[]);
+        let o = rsasim(
+            &[
+                "evaluate",
+                out.to_str().unwrap(),
+                "--csv",
+                file.to_str().unwrap(),
+            ],
+            &[],
+        );
         let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
         assert_eq!(o.status.code(), Some(2), "{stderr}");
         for e in expect {
             assert!(stderr.contains(e), "expected `{e}` in:\n{stderr}");
         }
     };
-    csv("n0-r00,source,tube1,1,2,NaN\n", &["r.csv:2:", "`z_mm`", "not a finite number"]);
-    csv("n0-r00,source,tube1,1,2,3\nn7-r00,source,tube1,1,2,3\n", &["r.csv:3:", "`run`", "no run `n7-r00`"]);
+    csv(
+        "n0-r00,source,tube1,1,2,NaN\n",
+        &["r.csv:2:", "`z_mm`", "not a finite number"],
+    );
+    csv(
+        "n0-r00,source,tube1,1,2,3\nn7-r00,source,tube1,1,2,3\n",
+        &["r.csv:3:", "`run`", "no run `n7-r00`"],
+    );
     csv("n0-r00,source,tube1,1,2\n", &["r.csv:2:", "malformed row"]);
-    csv("n0-r00,camera,tube1,1,2,3\n", &["r.csv:2:", "`kind`", "unknown kind `camera`"]);
-    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--csv", "/nonexistent/r.csv"], &[]);
+    csv(
+        "n0-r00,camera,tube1,1,2,3\n",
+        &["r.csv:2:", "`kind`", "unknown kind `camera`"],
+    );
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--csv",
+            "/nonexistent/r.csv",
+        ],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/r.csv"));
 }
@@ -270,12 +419,30 @@ fn bad_results_are_named_by_file_line_and_field() {
 fn the_command_writes_every_report_format() {
     let (tmp, out) = simulated();
     for (k, (dir, truth)) in truths(&out).iter().enumerate() {
-        std::fs::write(dir.join("measured.json"), serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap()).unwrap();
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(&measured_with_known_errors(truth, k)).unwrap(),
+        )
+        .unwrap();
     }
     let report = tmp.path().join("rep");
-    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--report", report.to_str().unwrap()], &[]);
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+        &[],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for f in ["report.md", "report.csv", "report.tex", "report.html", "iso5725.csv"] {
+    for f in [
+        "report.md",
+        "report.csv",
+        "report.tex",
+        "report.html",
+        "iso5725.csv",
+    ] {
         assert!(report.join(f).is_file(), "{f} missing");
     }
     let md = std::fs::read_to_string(report.join("report.md")).unwrap();
@@ -284,7 +451,17 @@ fn the_command_writes_every_report_format() {
     let tex = std::fs::read_to_string(report.join("report.tex")).unwrap();
     assert!(tex.contains(r"\cellcolor{red!25}"));
     // Default folder, chosen formats, two-sided τ.
-    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "md,html", "--sided", "two"], &[]);
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--format",
+            "md,html",
+            "--sided",
+            "two",
+        ],
+        &[],
+    );
     assert!(o.status.success());
     assert!(out.join("report/report.html").is_file() && !out.join("report/report.tex").exists());
     let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "pdf"], &[]);
@@ -299,7 +476,12 @@ fn a_folder_that_is_not_an_output_folder_is_named_as_such() {
         let o = rsasim(&[cmd, tmp.path().to_str().unwrap()], &[]);
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{cmd}: {stderr}");
-        assert!(stderr.contains("not an rsasim output folder: scenario.toml, manifest.json, runs missing"), "{cmd}: {stderr}");
+        assert!(
+            stderr.contains(
+                "not an rsasim output folder: scenario.toml, manifest.json, runs missing"
+            ),
+            "{cmd}: {stderr}"
+        );
         assert!(stderr.contains("--out DIR"), "{cmd}: {stderr}");
     }
 }

@@ -22,8 +22,18 @@ fn the_reconstruct_module_never_names_the_truth() {
                 continue;
             }
             let text = std::fs::read_to_string(&p).unwrap();
-            for forbidden in ["truth.json", "Truth", "TRUTH_FORMAT", "output::truth", "evaluate::"] {
-                assert!(!text.contains(forbidden), "{} mentions `{forbidden}`", p.display());
+            for forbidden in [
+                "truth.json",
+                "Truth",
+                "TRUTH_FORMAT",
+                "output::truth",
+                "evaluate::",
+            ] {
+                assert!(
+                    !text.contains(forbidden),
+                    "{} mentions `{forbidden}`",
+                    p.display()
+                );
             }
             files += 1;
         }
@@ -31,15 +41,27 @@ fn the_reconstruct_module_never_names_the_truth() {
     assert!(files >= 5);
 }
 
-fn cell_max(report: &Report, table: &str, group: &str, columns: &[&str], what: fn(&rsasim::evaluate::stats::Cell) -> f64) -> f64 {
-    let t = report.tables.iter().find(|t| t.id == table).unwrap_or_else(|| panic!("no table {table}"));
+fn cell_max(
+    report: &Report,
+    table: &str,
+    group: &str,
+    columns: &[&str],
+    what: fn(&rsasim::evaluate::stats::Cell) -> f64,
+) -> f64 {
+    let t = report
+        .tables
+        .iter()
+        .find(|t| t.id == table)
+        .unwrap_or_else(|| panic!("no table {table}"));
     let mut k = 0;
     let mut worst: f64 = 0.0;
     for g in &t.groups {
         for c in &g.columns {
             if g.label.starts_with(group) && columns.contains(&c.label.as_str()) {
                 for row in &t.rows {
-                    let cell = row.cells[k].as_ref().unwrap_or_else(|| panic!("{table} {group} {} not measured", c.label));
+                    let cell = row.cells[k]
+                        .as_ref()
+                        .unwrap_or_else(|| panic!("{table} {group} {} not measured", c.label));
                     worst = worst.max(what(cell).abs());
                 }
             }
@@ -55,7 +77,10 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
     let out = tmp.path().join("rec");
     run_scenario("tests/scenarios/reconstruct.toml", &out, &[]);
     // Hide every truth.json while reconstructing: it must not need them.
-    let runs: Vec<_> = std::fs::read_dir(out.join("runs")).unwrap().map(|e| e.unwrap().path()).collect();
+    let runs: Vec<_> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     for r in &runs {
         std::fs::rename(r.join("truth.json"), r.join("hidden")).unwrap();
     }
@@ -65,8 +90,14 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
         std::fs::rename(r.join("hidden"), r.join("truth.json")).unwrap();
         assert!(r.join("measured.json").exists());
     }
-    let report = evaluate(&out, &Options { measured: MeasuredSource::PerRun("measured.json".into()), confidence: Confidence::default() })
-        .unwrap_or_else(|e| panic!("{e:?}"));
+    let report = evaluate(
+        &out,
+        &Options {
+            measured: MeasuredSource::PerRun("measured.json".into()),
+            confidence: Confidence::default(),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e:?}"));
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     // Per noise level (3 runs each), |trueness| and RMS stay below a tenth of a millimetre
     // (degree) where the geometry allows it; depth (s) is looser by nature.
@@ -86,17 +117,37 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
         let t = cell_max(&report, table, group, cols, trueness);
         let r = cell_max(&report, table, group, cols, rms);
         eprintln!("{table} {group} {cols:?}: max |T| {t:.4}, max RMS {r:.4} (bound {bound})");
-        assert!(r < *bound, "{table} {group} {cols:?}: RMS {r} exceeds {bound}");
+        assert!(
+            r < *bound,
+            "{table} {group} {cols:?}: RMS {r} exceeds {bound}"
+        );
     }
 
     // The classic Selvik calibration on the same images: lateral accuracy within the same bound.
-    let o = rsasim(&["reconstruct", out.to_str().unwrap(), "--method", "selvik"], &[]);
+    let o = rsasim(
+        &["reconstruct", out.to_str().unwrap(), "--method", "selvik"],
+        &[],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = evaluate(&out, &Options { measured: MeasuredSource::PerRun("measured.json".into()), confidence: Confidence::default() }).unwrap();
-    assert!(report.software.iter().any(|s| s.contains("Selvik")), "{:?}", report.software);
+    let report = evaluate(
+        &out,
+        &Options {
+            measured: MeasuredSource::PerRun("measured.json".into()),
+            confidence: Confidence::default(),
+        },
+    )
+    .unwrap();
+    assert!(
+        report.software.iter().any(|s| s.contains("Selvik")),
+        "{:?}",
+        report.software
+    );
     for (table, group, cols, bound) in &checks[..4] {
         let r = cell_max(&report, table, group, cols, rms);
         eprintln!("selvik: {table} {group} {cols:?}: max RMS {r:.4} (bound {bound})");
-        assert!(r < *bound, "selvik: {table} {group} {cols:?}: RMS {r} exceeds {bound}");
+        assert!(
+            r < *bound,
+            "selvik: {table} {group} {cols:?}: RMS {r} exceeds {bound}"
+        );
     }
 }

@@ -25,14 +25,22 @@ fn the_scenario_schema_rejects_unknown_keys_and_documents_defaults() {
     assert_eq!(schema["additionalProperties"], false);
     let protocol = &schema["$defs"]["Protocol"]["properties"];
     assert_eq!(protocol["runs_per_level"]["default"], 20);
-    assert!(protocol["noise_levels"]["description"].as_str().unwrap().contains("0.225"));
+    assert!(
+        protocol["noise_levels"]["description"]
+            .as_str()
+            .unwrap()
+            .contains("0.225")
+    );
 }
 
 #[test]
 fn shipped_scenarios_point_editors_at_the_schema() {
     for file in ["scenarios/biplanar.toml", "scenarios/uniplanar.toml"] {
         let text = std::fs::read_to_string(root().join(file)).unwrap();
-        assert!(text.starts_with("#:schema ../schemas/scenario.schema.json"), "{file}");
+        assert!(
+            text.starts_with("#:schema ../schemas/scenario.schema.json"),
+            "{file}"
+        );
     }
 }
 

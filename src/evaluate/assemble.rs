@@ -21,7 +21,12 @@ impl Samples {
     fn new(id: &str, caption: String, groups: Vec<ColumnGroup>, levels: usize) -> Samples {
         let columns: usize = groups.iter().map(|g| g.columns.len()).sum();
         Samples {
-            table: Table { id: id.into(), caption, groups, rows: Vec::new() },
+            table: Table {
+                id: id.into(),
+                caption,
+                groups,
+                rows: Vec::new(),
+            },
             values: vec![vec![Vec::new(); levels]; columns],
         }
     }
@@ -44,15 +49,27 @@ pub fn quantise(x: f64) -> f64 {
 }
 
 fn col(label: &str, latex: &str, unit: &str) -> Column {
-    Column { label: label.into(), latex: latex.into(), unit: unit.into() }
+    Column {
+        label: label.into(),
+        latex: latex.into(),
+        unit: unit.into(),
+    }
 }
 
 fn beamline_columns() -> Vec<Column> {
-    vec![col("r", "r", "mm"), col("c", "c", "mm"), col("s", "s", "mm")]
+    vec![
+        col("r", "r", "mm"),
+        col("c", "c", "mm"),
+        col("s", "s", "mm"),
+    ]
 }
 
 fn detector_orientation_columns() -> Vec<Column> {
-    vec![col("α_r", r"\alpha_{r}", "deg"), col("β_c", r"\beta_{c}", "deg"), col("γ_s", r"\gamma_{s}", "deg")]
+    vec![
+        col("α_r", r"\alpha_{r}", "deg"),
+        col("β_c", r"\beta_{c}", "deg"),
+        col("γ_s", r"\gamma_{s}", "deg"),
+    ]
 }
 
 /// Inputs of [`assemble`]: truth runs with their measurement (None = not measured).
@@ -72,14 +89,39 @@ pub fn assemble(
     runs: &[Scored],
     mtpm_points: &MtpmPoints,
     confidence: &Confidence,
-) -> (Vec<Table>, Option<Table>, Vec<GroupAnalysis>, Vec<Excluded>, usize) {
-    let mut levels: Vec<(u32, f64)> = runs.iter().map(|r| (r.truth.truth.run.noise_level_index, r.truth.truth.run.noise_level)).collect();
+) -> (
+    Vec<Table>,
+    Option<Table>,
+    Vec<GroupAnalysis>,
+    Vec<Excluded>,
+    usize,
+) {
+    let mut levels: Vec<(u32, f64)> = runs
+        .iter()
+        .map(|r| {
+            (
+                r.truth.truth.run.noise_level_index,
+                r.truth.truth.run.noise_level,
+            )
+        })
+        .collect();
     levels.sort_by_key(|l| l.0);
     levels.dedup_by_key(|l| l.0);
-    let level_of = |index: u32| levels.iter().position(|l| l.0 == index).expect("level listed");
+    let level_of = |index: u32| {
+        levels
+            .iter()
+            .position(|l| l.0 == index)
+            .expect("level listed")
+    };
     let first = &runs[0].truth.truth.run;
 
-    let beamline_of = |source: &str| first.detectors.iter().find(|d| d.source == source).map(|d| d.id.clone());
+    let beamline_of = |source: &str| {
+        first
+            .detectors
+            .iter()
+            .find(|d| d.source == source)
+            .map(|d| d.id.clone())
+    };
     let mut sources = Samples::new(
         "sources",
         "Source positions (trueness ± precision), mm, along the beamline axes r, c, s of the source's detector".into(),
@@ -111,7 +153,12 @@ pub fn assemble(
             )
         })
         .collect();
-    let models: Vec<&str> = first.phantoms.iter().filter(|p| p.kind != "calibration_box").map(|p| p.id.as_str()).collect();
+    let models: Vec<&str> = first
+        .phantoms
+        .iter()
+        .filter(|p| p.kind != "calibration_box")
+        .map(|p| p.id.as_str())
+        .collect();
     let mut phantoms: Vec<Samples> = models
         .iter()
         .map(|id| {
@@ -129,7 +176,11 @@ pub fn assemble(
             )
         })
         .collect();
-    let mtpm_models: Vec<&str> = models.iter().copied().filter(|id| mtpm_points.get(*id).is_some_and(|p| !p.is_empty())).collect();
+    let mtpm_models: Vec<&str> = models
+        .iter()
+        .copied()
+        .filter(|id| mtpm_points.get(*id).is_some_and(|p| !p.is_empty()))
+        .collect();
     let mut mtpm_samples = Samples::new(
         "mtpm",
         "Maximum total point motion (MTPM) of each model over its beads (or its bounding-box corners), mm".into(),
@@ -142,14 +193,21 @@ pub fn assemble(
     for r in runs {
         let run = &r.truth.truth.run;
         let Some(m) = r.measured else {
-            excluded.push(Excluded { run: run.id.clone(), reason: "no measurement for this run".into() });
+            excluded.push(Excluded {
+                run: run.id.clone(),
+                reason: "no measurement for this run".into(),
+            });
             continue;
         };
         scored += 1;
         let level = level_of(run.noise_level_index);
         let mut missing = Vec::new();
         for (k, s) in run.sources.iter().enumerate() {
-            let frame = run.detectors.iter().find(|d| d.source == s.id).map_or(DMat3::IDENTITY, |d| d.rotation);
+            let frame = run
+                .detectors
+                .iter()
+                .find(|d| d.source == s.id)
+                .map_or(DMat3::IDENTITY, |d| d.rotation);
             match m.sources.get(&s.id) {
                 Some(p) => sources.push(3 * k, level, &position_along(&frame, *p, s.position_mm)),
                 None => missing.push(format!("source {}", s.id)),
@@ -160,7 +218,11 @@ pub fn assemble(
                 Some((p, rot)) => {
                     samples.push(3, level, &position_along(&d.rotation, *p, d.position_mm));
                     match rot {
-                        Some(rot) => samples.push(0, level, &orientation_about(&d.rotation, rot, &d.rotation)),
+                        Some(rot) => samples.push(
+                            0,
+                            level,
+                            &orientation_about(&d.rotation, rot, &d.rotation),
+                        ),
                         None => missing.push(format!("detector {} orientation", d.id)),
                     }
                 }
@@ -168,15 +230,31 @@ pub fn assemble(
             }
         }
         for (id, samples) in models.iter().zip(&mut phantoms) {
-            let t = run.phantoms.iter().find(|p| p.id == *id).expect("same phantoms in every run");
+            let t = run
+                .phantoms
+                .iter()
+                .find(|p| p.id == *id)
+                .expect("same phantoms in every run");
             match m.phantoms.get(*id) {
                 Some((p, rot)) => {
-                    samples.push(3, level, &position_along(&DMat3::IDENTITY, *p, t.position_mm));
+                    samples.push(
+                        3,
+                        level,
+                        &position_along(&DMat3::IDENTITY, *p, t.position_mm),
+                    );
                     match rot {
                         Some(rot) => {
-                            samples.push(0, level, &orientation_about(&DMat3::IDENTITY, rot, &t.rotation));
+                            samples.push(
+                                0,
+                                level,
+                                &orientation_about(&DMat3::IDENTITY, rot, &t.rotation),
+                            );
                             if let Some(k) = mtpm_models.iter().position(|x| x == id) {
-                                let v = mtpm(&mtpm_points[*id], (*p, *rot), (t.position_mm, t.rotation));
+                                let v = mtpm(
+                                    &mtpm_points[*id],
+                                    (*p, *rot),
+                                    (t.position_mm, t.rotation),
+                                );
                                 mtpm_samples.push(k, level, &[v]);
                             }
                         }
@@ -187,7 +265,10 @@ pub fn assemble(
             }
         }
         if !missing.is_empty() {
-            excluded.push(Excluded { run: run.id.clone(), reason: format!("not measured: {}", missing.join(", ")) });
+            excluded.push(Excluded {
+                run: run.id.clone(),
+                reason: format!("not measured: {}", missing.join(", ")),
+            });
         }
     }
 
@@ -196,8 +277,15 @@ pub fn assemble(
         let mut table = s.table;
         // Parameters are named with their group ("tube1 (beamline det1): r", "position: s"), so
         // tables with several groups of the same columns stay unambiguous.
-        let columns: Vec<(String, Column)> =
-            table.groups.iter().flat_map(|g| g.columns.iter().map(move |c| (format!("{}: {}", g.label, c.label), c.clone()))).collect();
+        let columns: Vec<(String, Column)> = table
+            .groups
+            .iter()
+            .flat_map(|g| {
+                g.columns
+                    .iter()
+                    .map(move |c| (format!("{}: {}", g.label, c.label), c.clone()))
+            })
+            .collect();
         table.rows = levels
             .iter()
             .enumerate()
@@ -206,7 +294,11 @@ pub fn assemble(
                 cells: s
                     .values
                     .iter()
-                    .map(|c| (!c[l].is_empty()).then(|| Cell::from_residuals(&c[l], confidence).at_resolution(RESOLUTION)))
+                    .map(|c| {
+                        (!c[l].is_empty()).then(|| {
+                            Cell::from_residuals(&c[l], confidence).at_resolution(RESOLUTION)
+                        })
+                    })
                     .collect(),
             })
             .collect();

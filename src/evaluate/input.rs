@@ -68,15 +68,20 @@ pub fn load_truths(out: &Path) -> Result<Vec<TruthRun>, Vec<Diagnostic>> {
                 Ok(truth) => out_runs.push(TruthRun { dir, truth }),
                 Err(e) => errors.push(json_error(&file, &e)),
             },
-            Err(e) => errors.push(Diagnostic::file_error(&file, format!("cannot read truth: {e}"))),
+            Err(e) => errors.push(Diagnostic::file_error(
+                &file,
+                format!("cannot read truth: {e}"),
+            )),
         }
     }
     if !errors.is_empty() {
         return Err(errors);
     }
     if out_runs.is_empty() {
-        return Err(vec![Diagnostic::file_error(&runs, "no run folder with a truth.json")
-            .with_help("run the scenario first: rsasim SCENARIO.toml --out DIR")]);
+        return Err(vec![
+            Diagnostic::file_error(&runs, "no run folder with a truth.json")
+                .with_help("run the scenario first: rsasim SCENARIO.toml --out DIR"),
+        ]);
     }
     out_runs.sort_by_key(|r| (r.truth.run.noise_level_index, r.truth.run.run_index));
     Ok(out_runs)
@@ -107,7 +112,12 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
         .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
     let m: Measured = serde_json::from_str(&text).map_err(|e| vec![json_error(file, &e)])?;
     let mut errors = Vec::new();
-    let err = |section: &str, index: Option<usize>, field: &str, value: &str, message: String, help: &str| {
+    let err = |section: &str,
+               index: Option<usize>,
+               field: &str,
+               value: &str,
+               message: String,
+               help: &str| {
         let mut path = KeyPath::root().key(section);
         if let Some(i) = index {
             path = path.index(i);
@@ -121,7 +131,14 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
         d
     };
     if m.format != MEASURED_FORMAT {
-        errors.push(err("format", None, "", &m.format, format!("unknown format `{}`", m.format), "use \"rsasim-measured/1\""));
+        errors.push(err(
+            "format",
+            None,
+            "",
+            &m.format,
+            format!("unknown format `{}`", m.format),
+            "use \"rsasim-measured/1\"",
+        ));
     }
     if m.run != truth.run.id {
         errors.push(err(
@@ -129,22 +146,55 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
             None,
             "",
             &m.run,
-            format!("the file says run `{}` but lies in the folder of run `{}`", m.run, truth.run.id),
+            format!(
+                "the file says run `{}` but lies in the folder of run `{}`",
+                m.run, truth.run.id
+            ),
             "write each run's result into that run's folder",
         ));
     }
-    let mut out = RunMeasurement { software: m.software.clone(), ..Default::default() };
+    let mut out = RunMeasurement {
+        software: m.software.clone(),
+        ..Default::default()
+    };
     for (i, s) in m.sources.iter().enumerate() {
-        match entity_position(&s.id, s.position_mm, truth.run.sources.iter().map(|x| x.id.as_str()), "source") {
+        match entity_position(
+            &s.id,
+            s.position_mm,
+            truth.run.sources.iter().map(|x| x.id.as_str()),
+            "source",
+        ) {
             Ok(p) => {
                 out.sources.insert(s.id.clone(), p);
             }
-            Err((field, msg, help)) => errors.push(err("sources", Some(i), field, &s.id, msg, &help)),
+            Err((field, msg, help)) => {
+                errors.push(err("sources", Some(i), field, &s.id, msg, &help))
+            }
         }
     }
     for (section, list, known, target) in [
-        ("detectors", &m.detectors, truth.run.detectors.iter().map(|x| x.id.clone()).collect::<Vec<_>>(), &mut out.detectors),
-        ("phantoms", &m.phantoms, truth.run.phantoms.iter().map(|x| x.id.clone()).collect::<Vec<_>>(), &mut out.phantoms),
+        (
+            "detectors",
+            &m.detectors,
+            truth
+                .run
+                .detectors
+                .iter()
+                .map(|x| x.id.clone())
+                .collect::<Vec<_>>(),
+            &mut out.detectors,
+        ),
+        (
+            "phantoms",
+            &m.phantoms,
+            truth
+                .run
+                .phantoms
+                .iter()
+                .map(|x| x.id.clone())
+                .collect::<Vec<_>>(),
+            &mut out.phantoms,
+        ),
     ] {
         for (i, e) in list.iter().enumerate() {
             let what = &section[..section.len() - 1];
@@ -154,7 +204,9 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
                 (Ok(p), Ok(r)) => {
                     target.insert(e.id.clone(), (p, r));
                 }
-                (Err((field, msg, help)), _) => errors.push(err(section, Some(i), field, &e.id, msg, &help)),
+                (Err((field, msg, help)), _) => {
+                    errors.push(err(section, Some(i), field, &e.id, msg, &help))
+                }
                 (_, Err(msg)) => errors.push(err(
                     section,
                     Some(i),
@@ -166,12 +218,21 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
             }
         }
     }
-    if errors.is_empty() { Ok(out) } else { Err(errors) }
+    if errors.is_empty() {
+        Ok(out)
+    } else {
+        Err(errors)
+    }
 }
 
 type EntityError = (&'static str, String, String);
 
-fn entity_position<'a>(id: &str, p: [f64; 3], mut known: impl Iterator<Item = &'a str>, what: &str) -> Result<DVec3, EntityError> {
+fn entity_position<'a>(
+    id: &str,
+    p: [f64; 3],
+    mut known: impl Iterator<Item = &'a str>,
+    what: &str,
+) -> Result<DVec3, EntityError> {
     let known_list: Vec<&str> = known.by_ref().collect();
     if !known_list.contains(&id) {
         return Err((
@@ -181,19 +242,34 @@ fn entity_position<'a>(id: &str, p: [f64; 3], mut known: impl Iterator<Item = &'
         ));
     }
     if p.iter().any(|x| !x.is_finite()) {
-        return Err(("position_mm", format!("{what} `{id}`: position {p:?} is not finite"), "give three finite numbers in mm".into()));
+        return Err((
+            "position_mm",
+            format!("{what} `{id}`: position {p:?} is not finite"),
+            "give three finite numbers in mm".into(),
+        ));
     }
     Ok(DVec3::from_array(p))
 }
 
 /// Reads a CSV long table (see the module doc) holding every run's results. Errors name the
 /// line and the column.
-pub fn load_measured_csv(file: &Path, truths: &[TruthRun]) -> Result<BTreeMap<String, RunMeasurement>, Vec<Diagnostic>> {
+pub fn load_measured_csv(
+    file: &Path,
+    truths: &[TruthRun],
+) -> Result<BTreeMap<String, RunMeasurement>, Vec<Diagnostic>> {
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .from_path(file)
         .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
-    let headers = reader.headers().map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read the header: {e}"))])?.clone();
+    let headers = reader
+        .headers()
+        .map_err(|e| {
+            vec![Diagnostic::file_error(
+                file,
+                format!("cannot read the header: {e}"),
+            )]
+        })?
+        .clone();
     let col = |name: &str| headers.iter().position(|h| h == name);
     let at = |line: usize, field: &str, message: String, help: &str| {
         let mut d = Diagnostic::file_error(file, message).with_help(help);
@@ -202,13 +278,28 @@ pub fn load_measured_csv(file: &Path, truths: &[TruthRun]) -> Result<BTreeMap<St
         d
     };
     let required = ["run", "kind", "id", "x_mm", "y_mm", "z_mm"];
-    let missing: Vec<&str> = required.iter().copied().filter(|c| col(c).is_none()).collect();
+    let missing: Vec<&str> = required
+        .iter()
+        .copied()
+        .filter(|c| col(c).is_none())
+        .collect();
     if !missing.is_empty() {
-        return Err(vec![at(1, missing[0], format!("the header lacks the column(s) {}", missing.join(", ")), "the header needs run,kind,id,x_mm,y_mm,z_mm and optionally r11..r33 or qw,qx,qy,qz")]);
+        return Err(vec![at(
+            1,
+            missing[0],
+            format!("the header lacks the column(s) {}", missing.join(", ")),
+            "the header needs run,kind,id,x_mm,y_mm,z_mm and optionally r11..r33 or qw,qx,qy,qz",
+        )]);
     }
-    let matrix: Option<Vec<usize>> = (1..=3).flat_map(|r| (1..=3).map(move |c| format!("r{r}{c}"))).map(|n| col(&n)).collect();
+    let matrix: Option<Vec<usize>> = (1..=3)
+        .flat_map(|r| (1..=3).map(move |c| format!("r{r}{c}")))
+        .map(|n| col(&n))
+        .collect();
     let quat: Option<Vec<usize>> = ["qw", "qx", "qy", "qz"].iter().map(|n| col(n)).collect();
-    let software = format!("{} (CSV)", file.file_name().unwrap_or_default().to_string_lossy());
+    let software = format!(
+        "{} (CSV)",
+        file.file_name().unwrap_or_default().to_string_lossy()
+    );
     let mut out: BTreeMap<String, RunMeasurement> = BTreeMap::new();
     let mut errors = Vec::new();
     for (k, record) in reader.records().enumerate() {
@@ -216,27 +307,50 @@ pub fn load_measured_csv(file: &Path, truths: &[TruthRun]) -> Result<BTreeMap<St
         let record = match record {
             Ok(r) => r,
             Err(e) => {
-                errors.push(at(line, "row", format!("malformed row: {e}"), "every row needs as many fields as the header"));
+                errors.push(at(
+                    line,
+                    "row",
+                    format!("malformed row: {e}"),
+                    "every row needs as many fields as the header",
+                ));
                 continue;
             }
         };
         let get = |name: &str| record.get(col(name).expect("checked column")).unwrap_or("");
         let number = |name: &str| -> Result<f64, Box<Diagnostic>> {
             let v = get(name);
-            v.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
-                Box::new(at(line, name, format!("`{name}` = `{v}` is not a finite number"), "use a decimal number such as 12.5 or -0.003"))
-            })
+            v.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| {
+                    Box::new(at(
+                        line,
+                        name,
+                        format!("`{name}` = `{v}` is not a finite number"),
+                        "use a decimal number such as 12.5 or -0.003",
+                    ))
+                })
         };
         let run_id = get("run").to_string();
         let Some(truth) = truths.iter().find(|t| t.truth.run.id == run_id) else {
-            errors.push(at(line, "run", format!("no run `{run_id}` in the output folder"), "use the run ids of the runs/ folders, e.g. n0-r00"));
+            errors.push(at(
+                line,
+                "run",
+                format!("no run `{run_id}` in the output folder"),
+                "use the run ids of the runs/ folders, e.g. n0-r00",
+            ));
             continue;
         };
         let (kind, id) = (get("kind").to_string(), get("id").to_string());
         let position = match (number("x_mm"), number("y_mm"), number("z_mm")) {
             (Ok(x), Ok(y), Ok(z)) => DVec3::new(x, y, z),
             (a, b, c) => {
-                errors.extend([a.err(), b.err(), c.err()].into_iter().flatten().map(|d| *d));
+                errors.extend(
+                    [a.err(), b.err(), c.err()]
+                        .into_iter()
+                        .flatten()
+                        .map(|d| *d),
+                );
                 continue;
             }
         };
@@ -247,19 +361,32 @@ pub fn load_measured_csv(file: &Path, truths: &[TruthRun]) -> Result<BTreeMap<St
                 continue;
             }
         };
-        let entry = out.entry(run_id.clone()).or_insert_with(|| RunMeasurement { software: software.clone(), ..Default::default() });
+        let entry = out.entry(run_id.clone()).or_insert_with(|| RunMeasurement {
+            software: software.clone(),
+            ..Default::default()
+        });
         let run = &truth.truth.run;
         let known: Vec<&str> = match kind.as_str() {
             "source" => run.sources.iter().map(|x| x.id.as_str()).collect(),
             "detector" => run.detectors.iter().map(|x| x.id.as_str()).collect(),
             "phantom" => run.phantoms.iter().map(|x| x.id.as_str()).collect(),
             _ => {
-                errors.push(at(line, "kind", format!("unknown kind `{kind}`"), "kind is source, detector or phantom"));
+                errors.push(at(
+                    line,
+                    "kind",
+                    format!("unknown kind `{kind}`"),
+                    "kind is source, detector or phantom",
+                ));
                 continue;
             }
         };
         if !known.contains(&id.as_str()) {
-            errors.push(at(line, "id", format!("no {kind} has the id `{id}` in run {run_id}"), &format!("valid {kind} ids: {}", known.join(", "))));
+            errors.push(at(
+                line,
+                "id",
+                format!("no {kind} has the id `{id}` in run {run_id}"),
+                &format!("valid {kind} ids: {}", known.join(", ")),
+            ));
             continue;
         }
         match kind.as_str() {
@@ -268,12 +395,26 @@ pub fn load_measured_csv(file: &Path, truths: &[TruthRun]) -> Result<BTreeMap<St
             _ => drop(entry.phantoms.insert(id, (position, rotation))),
         }
     }
-    if errors.is_empty() { Ok(out) } else { Err(errors) }
+    if errors.is_empty() {
+        Ok(out)
+    } else {
+        Err(errors)
+    }
 }
 
-fn parse_rotation(record: &csv::StringRecord, matrix: Option<&[usize]>, quat: Option<&[usize]>) -> Result<Option<DMat3>, (String, String)> {
-    let cells = |cols: &[usize]| -> Vec<String> { cols.iter().map(|&c| record.get(c).unwrap_or("").to_string()).collect() };
-    let numbers = |cols: &[usize], names: &dyn Fn(usize) -> String| -> Result<Option<Vec<f64>>, (String, String)> {
+fn parse_rotation(
+    record: &csv::StringRecord,
+    matrix: Option<&[usize]>,
+    quat: Option<&[usize]>,
+) -> Result<Option<DMat3>, (String, String)> {
+    let cells = |cols: &[usize]| -> Vec<String> {
+        cols.iter()
+            .map(|&c| record.get(c).unwrap_or("").to_string())
+            .collect()
+    };
+    let numbers = |cols: &[usize],
+                   names: &dyn Fn(usize) -> String|
+     -> Result<Option<Vec<f64>>, (String, String)> {
         let values = cells(cols);
         if values.iter().all(String::is_empty) {
             return Ok(None);
@@ -282,7 +423,15 @@ fn parse_rotation(record: &csv::StringRecord, matrix: Option<&[usize]>, quat: Op
             .iter()
             .enumerate()
             .map(|(i, v)| {
-                v.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| (names(i), format!("`{}` = `{v}` is not a finite number", names(i))))
+                v.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        (
+                            names(i),
+                            format!("`{}` = `{v}` is not a finite number", names(i)),
+                        )
+                    })
             })
             .collect::<Result<Vec<_>, _>>()
             .map(Some)
@@ -291,12 +440,16 @@ fn parse_rotation(record: &csv::StringRecord, matrix: Option<&[usize]>, quat: Op
         && let Some(v) = numbers(cols, &|i| format!("r{}{}", i / 3 + 1, i % 3 + 1))?
     {
         let rows = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
-        return checked_rotation(rows).map(Some).map_err(|m| ("r11".into(), m));
+        return checked_rotation(rows)
+            .map(Some)
+            .map_err(|m| ("r11".into(), m));
     }
     if let Some(cols) = quat
         && let Some(v) = numbers(cols, &|i| ["qw", "qx", "qy", "qz"][i].to_string())?
     {
-        return rotation_from_quaternion(v[0], v[1], v[2], v[3]).map(Some).map_err(|m| ("qw".into(), m));
+        return rotation_from_quaternion(v[0], v[1], v[2], v[3])
+            .map(Some)
+            .map_err(|m| ("qw".into(), m));
     }
     Ok(None)
 }

@@ -142,12 +142,27 @@ pub fn analyse(groups: &[Vec<f64>]) -> Iso5725 {
     let p = groups.len();
     let n_per_group: Vec<usize> = groups.iter().map(|g| g.len()).collect();
     let n_total: usize = n_per_group.iter().sum();
-    let means: Vec<f64> = groups.iter().map(|g| g.iter().sum::<f64>() / g.len() as f64).collect();
+    let means: Vec<f64> = groups
+        .iter()
+        .map(|g| g.iter().sum::<f64>() / g.len() as f64)
+        .collect();
     let grand_mean = groups.iter().flat_map(|g| g.iter()).sum::<f64>() / n_total.max(1) as f64;
-    let within_ss: f64 = groups.iter().zip(&means).map(|(g, m)| g.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sum();
+    let within_ss: f64 = groups
+        .iter()
+        .zip(&means)
+        .map(|(g, m)| g.iter().map(|x| (x - m).powi(2)).sum::<f64>())
+        .sum();
     let df_within = n_total.saturating_sub(p);
-    let s_r2 = if df_within > 0 { within_ss / df_within as f64 } else { f64::NAN };
-    let between_ss: f64 = n_per_group.iter().zip(&means).map(|(&n, m)| n as f64 * (m - grand_mean).powi(2)).sum();
+    let s_r2 = if df_within > 0 {
+        within_ss / df_within as f64
+    } else {
+        f64::NAN
+    };
+    let between_ss: f64 = n_per_group
+        .iter()
+        .zip(&means)
+        .map(|(&n, m)| n as f64 * (m - grand_mean).powi(2))
+        .sum();
     let (s_l2, anova) = if p >= 2 {
         let s_d2 = between_ss / (p - 1) as f64;
         let sum_n2: f64 = n_per_group.iter().map(|&n| (n * n) as f64).sum();
@@ -155,8 +170,14 @@ pub fn analyse(groups: &[Vec<f64>]) -> Iso5725 {
         let s_l2 = ((s_d2 - s_r2) / n_bar).max(0.0);
         let anova = (df_within > 0 && s_r2 > 0.0).then(|| {
             let f = s_d2 / s_r2;
-            let dist = FisherSnedecor::new((p - 1) as f64, df_within as f64).expect("positive degrees of freedom");
-            Anova { f, df_between: p - 1, df_within, p_value: 1.0 - dist.cdf(f) }
+            let dist = FisherSnedecor::new((p - 1) as f64, df_within as f64)
+                .expect("positive degrees of freedom");
+            Anova {
+                f,
+                df_between: p - 1,
+                df_within,
+                p_value: 1.0 - dist.cdf(f),
+            }
         });
         (s_l2, anova)
     } else {
@@ -168,11 +189,18 @@ pub fn analyse(groups: &[Vec<f64>]) -> Iso5725 {
     let variances: Vec<Option<f64>> = groups
         .iter()
         .zip(&means)
-        .map(|(g, m)| (g.len() >= 2).then(|| g.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (g.len() - 1) as f64))
+        .map(|(g, m)| {
+            (g.len() >= 2)
+                .then(|| g.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (g.len() - 1) as f64)
+        })
         .collect();
     let cochran = cochran(&variances, &n_per_group);
     let grubbs = grubbs(&means);
-    let (mandel_h, mandel_k) = if p >= 2 { (mandel_h(&means), mandel_k(&variances)) } else { (Vec::new(), Vec::new()) };
+    let (mandel_h, mandel_k) = if p >= 2 {
+        (mandel_h(&means), mandel_k(&variances))
+    } else {
+        (Vec::new(), Vec::new())
+    };
     Iso5725 {
         groups: p,
         n_per_group,
@@ -200,7 +228,10 @@ fn mean_sd(values: &[f64]) -> (f64, f64) {
 /// Mandel's h of the group means (at least 2); NaN everywhere when they are all equal.
 fn mandel_h(means: &[f64]) -> Vec<f64> {
     let (m, s) = mean_sd(means);
-    means.iter().map(|y| if s > 0.0 { (y - m) / s } else { f64::NAN }).collect()
+    means
+        .iter()
+        .map(|y| if s > 0.0 { (y - m) / s } else { f64::NAN })
+        .collect()
 }
 
 /// Mandel's k of the group variances (`None`: a group with one result, k = NaN).
@@ -219,8 +250,12 @@ fn mandel_k(variances: &[Option<f64>]) -> Vec<f64> {
 /// Cochran's test on the variances of the groups with at least 2 results; the critical values
 /// use the most frequent n among those groups (the smallest such n on a tie).
 fn cochran(variances: &[Option<f64>], n_per_group: &[usize]) -> Option<OutlierTest> {
-    let tested: Vec<(usize, f64, usize)> =
-        variances.iter().zip(n_per_group).enumerate().filter_map(|(i, (v, &n))| v.map(|v| (i, v, n))).collect();
+    let tested: Vec<(usize, f64, usize)> = variances
+        .iter()
+        .zip(n_per_group)
+        .enumerate()
+        .filter_map(|(i, (v, &n))| v.map(|v| (i, v, n)))
+        .collect();
     let p = tested.len();
     if p < 2 {
         return None;
@@ -230,12 +265,21 @@ fn cochran(variances: &[Option<f64>], n_per_group: &[usize]) -> Option<OutlierTe
         return None;
     }
     // First of the largest variances.
-    let (group, max, _) = tested.iter().copied().fold(tested[0], |best, t| if t.1 > best.1 { t } else { best });
+    let (group, max, _) = tested
+        .iter()
+        .copied()
+        .fold(tested[0], |best, t| if t.1 > best.1 { t } else { best });
     let n = most_frequent(tested.iter().map(|t| t.2));
     let statistic = max / sum;
     let critical_5 = cochran_critical(p, n, 0.05);
     let critical_1 = cochran_critical(p, n, 0.01);
-    Some(OutlierTest { statistic, critical_5, critical_1, group, verdict: OutlierVerdict::of(statistic, critical_5, critical_1) })
+    Some(OutlierTest {
+        statistic,
+        critical_5,
+        critical_1,
+        group,
+        verdict: OutlierVerdict::of(statistic, critical_5, critical_1),
+    })
 }
 
 /// The most frequent value (the smallest one on a tie); `values` must not be empty.
@@ -254,7 +298,10 @@ fn most_frequent(values: impl Iterator<Item = usize>) -> usize {
 /// Upper critical value of Cochran's C for `p` variances from `n` results each (p ≥ 2, n ≥ 2)
 /// at significance level `alpha`: 1 / (1 + (p − 1)/F(1 − α/p; n − 1, (p − 1)(n − 1))).
 pub fn cochran_critical(p: usize, n: usize, alpha: f64) -> f64 {
-    assert!(p >= 2 && n >= 2, "Cochran's test needs p ≥ 2 groups of n ≥ 2 results");
+    assert!(
+        p >= 2 && n >= 2,
+        "Cochran's test needs p ≥ 2 groups of n ≥ 2 results"
+    );
     let nu = (n - 1) as f64;
     let f = FisherSnedecor::new(nu, (p - 1) as f64 * nu).expect("positive degrees of freedom");
     let q = f.inverse_cdf(1.0 - alpha / p as f64);
@@ -274,11 +321,21 @@ fn grubbs(means: &[f64]) -> Option<OutlierTest> {
     // First of the largest and first of the smallest mean; the largest wins a tie.
     let hi = (0..p).fold(0, |b, i| if means[i] > means[b] { i } else { b });
     let lo = (0..p).fold(0, |b, i| if means[i] < means[b] { i } else { b });
-    let (group, deviation) = if means[hi] - m >= m - means[lo] { (hi, means[hi] - m) } else { (lo, m - means[lo]) };
+    let (group, deviation) = if means[hi] - m >= m - means[lo] {
+        (hi, means[hi] - m)
+    } else {
+        (lo, m - means[lo])
+    };
     let statistic = deviation / s;
     let critical_5 = grubbs_critical(p, 0.05);
     let critical_1 = grubbs_critical(p, 0.01);
-    Some(OutlierTest { statistic, critical_5, critical_1, group, verdict: OutlierVerdict::of(statistic, critical_5, critical_1) })
+    Some(OutlierTest {
+        statistic,
+        critical_5,
+        critical_1,
+        group,
+        verdict: OutlierVerdict::of(statistic, critical_5, critical_1),
+    })
 }
 
 /// Critical value of Grubbs' single-outlier statistic (the more extreme of the largest and the
@@ -302,7 +359,11 @@ mod tests {
         // Groups {1,2,3}, {2,3,4}, {6,7,8}: means 2, 3, 7; grand mean 4; within SS = 2+2+2 = 6,
         // df 6 → s_r² = 1. Between SS = 3·(4+1+9) = 42, df 2 → s_d² = 21; n̄ = 3;
         // s_L² = (21 − 1)/3 = 6.667; s_R² = 7.667. F = 21, p = P(F(2,6) ≥ 21) = 0.001953.
-        let a = analyse(&[vec![1.0, 2.0, 3.0], vec![2.0, 3.0, 4.0], vec![6.0, 7.0, 8.0]]);
+        let a = analyse(&[
+            vec![1.0, 2.0, 3.0],
+            vec![2.0, 3.0, 4.0],
+            vec![6.0, 7.0, 8.0],
+        ]);
         assert_eq!(a.groups, 3);
         assert!((a.grand_mean - 4.0).abs() < 1e-12);
         assert!((a.s_r - 1.0).abs() < 1e-12);
@@ -361,7 +422,13 @@ mod tests {
         // (p, 5 % value, 1 % value) of ISO 5725-2:1994 Table 5 ("one largest or one smallest"),
         // as reproduced in LibreTexts Chemistry, Analytical References, Appendix 07 "Critical
         // Values for Grubb's Test".
-        let iso = [(3, 1.155, 1.155), (4, 1.481, 1.496), (5, 1.715, 1.764), (6, 1.887, 1.973), (10, 2.290, 2.482)];
+        let iso = [
+            (3, 1.155, 1.155),
+            (4, 1.481, 1.496),
+            (5, 1.715, 1.764),
+            (6, 1.887, 1.973),
+            (10, 2.290, 2.482),
+        ];
         for (p, g5, g1) in iso {
             let (got5, got1) = (grubbs_critical(p, 0.05), grubbs_critical(p, 0.01));
             // ISO prints 1.155 for p = 3 at 5 %, where the formula (and the 4-decimal table
@@ -372,7 +439,12 @@ mod tests {
         }
         // The same at 4 decimals, from the table in octave-samplestat's grubbs_crit.m
         // (github.com/haniibrahim/octave-samplestat).
-        let four = [(3, 1.1543, 1.1547), (4, 1.4812, 1.4962), (5, 1.7150, 1.7637), (6, 1.8871, 1.9728)];
+        let four = [
+            (3, 1.1543, 1.1547),
+            (4, 1.4812, 1.4962),
+            (5, 1.7150, 1.7637),
+            (6, 1.8871, 1.9728),
+        ];
         for (p, g5, g1) in four {
             assert!(close(grubbs_critical(p, 0.05), g5, 0.6e-4), "p={p} 5 %");
             assert!(close(grubbs_critical(p, 0.01), g1, 0.6e-4), "p={p} 1 %");
@@ -384,20 +456,34 @@ mod tests {
     fn verdict_thresholds() {
         assert_eq!(OutlierVerdict::of(0.5, 0.6, 0.7), OutlierVerdict::Accepted);
         assert_eq!(OutlierVerdict::of(0.6, 0.6, 0.7), OutlierVerdict::Accepted);
-        assert_eq!(OutlierVerdict::of(0.65, 0.6, 0.7), OutlierVerdict::Straggler);
+        assert_eq!(
+            OutlierVerdict::of(0.65, 0.6, 0.7),
+            OutlierVerdict::Straggler
+        );
         assert_eq!(OutlierVerdict::of(0.7, 0.6, 0.7), OutlierVerdict::Straggler);
         assert_eq!(OutlierVerdict::of(0.71, 0.6, 0.7), OutlierVerdict::Outlier);
-        assert_eq!(serde_json::to_value(OutlierVerdict::Straggler).unwrap(), serde_json::json!("straggler"));
+        assert_eq!(
+            serde_json::to_value(OutlierVerdict::Straggler).unwrap(),
+            serde_json::json!("straggler")
+        );
     }
 
     #[test]
     fn a_group_with_a_much_larger_variance_is_a_cochran_outlier() {
         // p = 4, n = 3. Variances 1, 1, 1, 100 (group 3: deviations −10, 0, 10, SS 200, df 2).
         // C = 100/103 = 0.97087 > C_crit(1 %; p = 4, n = 3) = 0.8643 (ISO 5725-2 Table 4: 0.864).
-        let a = analyse(&[vec![1.0, 2.0, 3.0], vec![3.0, 4.0, 5.0], vec![2.0, 3.0, 4.0], vec![-7.0, 3.0, 13.0]]);
+        let a = analyse(&[
+            vec![1.0, 2.0, 3.0],
+            vec![3.0, 4.0, 5.0],
+            vec![2.0, 3.0, 4.0],
+            vec![-7.0, 3.0, 13.0],
+        ]);
         let c = a.cochran.unwrap();
         assert!(close(c.statistic, 100.0 / 103.0, 1e-12));
-        assert!(close(c.critical_1, 0.8643, 1e-4) && close(c.critical_5, 0.7679, 1e-4), "{c:?}");
+        assert!(
+            close(c.critical_1, 0.8643, 1e-4) && close(c.critical_5, 0.7679, 1e-4),
+            "{c:?}"
+        );
         assert_eq!((c.group, c.verdict), (3, OutlierVerdict::Outlier));
         // Means 2, 4, 3, 3: m = 3, s = √(2/3); G = 1/√(2/3) = 1.2247 (the largest mean, group 1,
         // wins the tie with the smallest) < 1.481: accepted.
@@ -412,7 +498,12 @@ mod tests {
     fn a_moderately_larger_variance_is_a_cochran_straggler() {
         // Variances 1, 1, 1, 12 ({0, 0, 6}: mean 2, SS 4 + 4 + 16 = 24, df 2): C = 12/15 = 0.8,
         // between 0.7679 (5 %) and 0.8643 (1 %).
-        let a = analyse(&[vec![1.0, 2.0, 3.0], vec![3.0, 4.0, 5.0], vec![2.0, 3.0, 4.0], vec![0.0, 0.0, 6.0]]);
+        let a = analyse(&[
+            vec![1.0, 2.0, 3.0],
+            vec![3.0, 4.0, 5.0],
+            vec![2.0, 3.0, 4.0],
+            vec![0.0, 0.0, 6.0],
+        ]);
         let c = a.cochran.unwrap();
         assert!(close(c.statistic, 0.8, 1e-12));
         assert_eq!((c.group, c.verdict), (3, OutlierVerdict::Straggler));
@@ -454,8 +545,16 @@ mod tests {
         let k = [k1, k1, 2.0 * k1, k1, k1];
         assert_eq!((a.mandel_h.len(), a.mandel_k.len()), (5, 5));
         for i in 0..5 {
-            assert!(close(a.mandel_h[i], h[i], 1e-12), "h[{i}] = {}", a.mandel_h[i]);
-            assert!(close(a.mandel_k[i], k[i], 1e-12), "k[{i}] = {}", a.mandel_k[i]);
+            assert!(
+                close(a.mandel_h[i], h[i], 1e-12),
+                "h[{i}] = {}",
+                a.mandel_h[i]
+            );
+            assert!(
+                close(a.mandel_k[i], k[i], 1e-12),
+                "k[{i}] = {}",
+                a.mandel_k[i]
+            );
         }
         // C = 4/8 = 0.5 < 0.6838 (p = 5, n = 3, 5 %); G = 1/√0.5 = 1.4142 < 1.715.
         let c = a.cochran.unwrap();
@@ -471,7 +570,12 @@ mod tests {
         // n = 3, 3, 4, 1. The single result has no variance: Cochran over p = 3 groups with the
         // most frequent n = 3. Variances 1, 1, 5/3 ({0, 1, 2, 3}: SS 5, df 3); Σ = 11/3;
         // C = 5/11; k_i = √(s_i²·3/(11/3)).
-        let a = analyse(&[vec![1.0, 2.0, 3.0], vec![2.0, 3.0, 4.0], vec![0.0, 1.0, 2.0, 3.0], vec![10.0]]);
+        let a = analyse(&[
+            vec![1.0, 2.0, 3.0],
+            vec![2.0, 3.0, 4.0],
+            vec![0.0, 1.0, 2.0, 3.0],
+            vec![10.0],
+        ]);
         let c = a.cochran.unwrap();
         assert!(close(c.statistic, 5.0 / 11.0, 1e-12));
         assert_eq!(c.group, 2);

@@ -74,7 +74,10 @@ pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>
     };
     if measurements.is_empty() {
         let what = match &options.measured {
-            MeasuredSource::PerRun(name) => format!("no run folder under {} holds a {name}", out.join("runs").display()),
+            MeasuredSource::PerRun(name) => format!(
+                "no run folder under {} holds a {name}",
+                out.join("runs").display()
+            ),
             MeasuredSource::Csv(file) => format!("{} has no rows", file.display()),
         };
         return Err(vec![Diagnostic::file_error(out, what)
@@ -84,9 +87,18 @@ pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>
     let scenario_file = out.join("scenario.toml");
     let loaded = scenario::load(&scenario_file)?;
     let mtpm_points = mtpm_points(&loaded, &truths);
-    let scored: Vec<Scored> = truths.iter().map(|t| Scored { truth: t, measured: measurements.get(&t.truth.run.id) }).collect();
-    let (tables, mtpm, group_analyses, excluded, runs_scored) = assemble(&scored, &mtpm_points, &options.confidence);
-    let manifest_sha256 = std::fs::read(out.join("manifest.json")).map(|b| hex(&Sha256::digest(&b))).unwrap_or_else(|_| "(no manifest.json)".into());
+    let scored: Vec<Scored> = truths
+        .iter()
+        .map(|t| Scored {
+            truth: t,
+            measured: measurements.get(&t.truth.run.id),
+        })
+        .collect();
+    let (tables, mtpm, group_analyses, excluded, runs_scored) =
+        assemble(&scored, &mtpm_points, &options.confidence);
+    let manifest_sha256 = std::fs::read(out.join("manifest.json"))
+        .map(|b| hex(&Sha256::digest(&b)))
+        .unwrap_or_else(|_| "(no manifest.json)".into());
     let mut software: Vec<String> = measurements.values().map(|m| m.software.clone()).collect();
     software.sort();
     software.dedup();
@@ -113,13 +125,26 @@ fn mtpm_points(loaded: &scenario::LoadedScenario, truths: &[input::TruthRun]) ->
     let mut out = MtpmPoints::new();
     for p in run.phantoms.iter().filter(|p| p.kind != "calibration_box") {
         let pose = p.pose();
-        let mut points: Vec<DVec3> = p.markers.iter().map(|m| pose.to_local(m.position_mm)).collect();
+        let mut points: Vec<DVec3> = p
+            .markers
+            .iter()
+            .map(|m| pose.to_local(m.position_mm))
+            .collect();
         if points.is_empty()
-            && let Some(mesh) = models.as_ref().and_then(|ms| ms.iter().find(|m| m.id == p.id)).and_then(|m| m.mesh.as_ref())
+            && let Some(mesh) = models
+                .as_ref()
+                .and_then(|ms| ms.iter().find(|m| m.id == p.id))
+                .and_then(|m| m.mesh.as_ref())
         {
             let (lo, hi) = mesh.bounds_mm();
             points = (0..8)
-                .map(|k| DVec3::new(if k & 1 == 0 { lo.x } else { hi.x }, if k & 2 == 0 { lo.y } else { hi.y }, if k & 4 == 0 { lo.z } else { hi.z }))
+                .map(|k| {
+                    DVec3::new(
+                        if k & 1 == 0 { lo.x } else { hi.x },
+                        if k & 2 == 0 { lo.y } else { hi.y },
+                        if k & 4 == 0 { lo.z } else { hi.z },
+                    )
+                })
                 .collect();
         }
         out.insert(p.id.clone(), points);
@@ -132,7 +157,12 @@ fn summary(s: &scenario::Scenario, runs: usize) -> Vec<String> {
     let mut lines = vec![format!(
         "Protocol: {} noise level(s) ({}) × {} run(s) = {runs} runs; seed {}",
         s.protocol.noise_levels.len(),
-        s.protocol.noise_levels.iter().map(|l| format!("{}%", l * 100.0)).collect::<Vec<_>>().join(", "),
+        s.protocol
+            .noise_levels
+            .iter()
+            .map(|l| format!("{}%", l * 100.0))
+            .collect::<Vec<_>>()
+            .join(", "),
         s.protocol.runs_per_level,
         s.seed
     )];
@@ -146,8 +176,12 @@ fn summary(s: &scenario::Scenario, runs: usize) -> Vec<String> {
     for p in &s.phantoms {
         let what = match p.shape() {
             scenario::PhantomShape::Beads(b) => format!("{} bead(s)", b.len()),
-            scenario::PhantomShape::CalibrationBox(b) => format!("calibration box, {} plate(s)", b.plates.len()),
-            scenario::PhantomShape::Mesh(m) => format!("mesh {}, {} bead(s)", m.file, m.beads.len()),
+            scenario::PhantomShape::CalibrationBox(b) => {
+                format!("calibration box, {} plate(s)", b.plates.len())
+            }
+            scenario::PhantomShape::Mesh(m) => {
+                format!("mesh {}, {} bead(s)", m.file, m.beads.len())
+            }
         };
         lines.push(format!("Phantom {}: {what}", p.id));
     }

@@ -48,12 +48,19 @@ mod tests {
         // A detector of beamline 2 (s = +x): r = −z, c = +y, s = +x.
         let det = rotation_xyz_deg([0.0, 90.0, 0.0]);
         // A source moved 2 mm towards the detector (along −s = −x) reports s = −2.
-        let [r, c, s] = position_along(&det, DVec3::new(1298.0, 0.0, 0.0), DVec3::new(1300.0, 0.0, 0.0));
+        let [r, c, s] = position_along(
+            &det,
+            DVec3::new(1298.0, 0.0, 0.0),
+            DVec3::new(1300.0, 0.0, 0.0),
+        );
         assert!(r.abs() < 1e-12 && c.abs() < 1e-12 && (s + 2.0).abs() < 1e-12);
         // A detector turned 0.5° about its own s axis (world x) reports γ_s = 0.5.
         let measured = rotation_xyz_deg([0.5, 0.0, 0.0]) * det;
         let [a, b, g] = orientation_about(&det, &measured, &det);
-        assert!(a.abs() < 1e-12 && b.abs() < 1e-12 && (g - 0.5).abs() < 1e-12, "{a} {b} {g}");
+        assert!(
+            a.abs() < 1e-12 && b.abs() < 1e-12 && (g - 0.5).abs() < 1e-12,
+            "{a} {b} {g}"
+        );
     }
 
     #[test]

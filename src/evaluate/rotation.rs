@@ -50,7 +50,9 @@ pub fn rotation_from_quaternion(w: f64, x: f64, y: f64, z: f64) -> Result<DMat3,
     }
     let norm = q.length();
     if (norm - 1.0).abs() > REPAIR_TOLERANCE {
-        return Err(format!("the quaternion is not a unit quaternion: ‖q‖ = {norm:.9} (within 1e-6 of 1 is repaired)"));
+        return Err(format!(
+            "the quaternion is not a unit quaternion: ‖q‖ = {norm:.9} (within 1e-6 of 1 is repaired)"
+        ));
     }
     Ok(DMat3::from_quat(q / norm))
 }
@@ -74,7 +76,10 @@ mod tests {
         assert!((fixed - r).abs_diff_eq(DMat3::ZERO, 1e-6));
         bent[0][1] += 1e-3;
         let e = checked_rotation(bent).unwrap_err();
-        assert!(e.contains("not orthonormal: max |RᵀR − I| = 9.391e-4"), "{e}");
+        assert!(
+            e.contains("not orthonormal: max |RᵀR − I| = 9.391e-4"),
+            "{e}"
+        );
         let mut mirror = rows(DMat3::IDENTITY);
         mirror[2][2] = -1.0;
         assert!(checked_rotation(mirror).unwrap_err().contains("reflection"));

@@ -30,7 +30,10 @@ pub struct Confidence {
 impl Default for Confidence {
     /// The paper's choice: one-sided 95 %.
     fn default() -> Self {
-        Confidence { level: 0.95, sided: Sided::One }
+        Confidence {
+            level: 0.95,
+            sided: Sided::One,
+        }
     }
 }
 
@@ -110,16 +113,37 @@ impl Cell {
         };
         let tau = confidence.tau(n).unwrap_or(f64::NAN);
         let precision = tau * sd / (n as f64).sqrt();
-        Cell { n, trueness: mean, sd, tau, precision, rms, significance: Significance::of(mean, precision) }
+        Cell {
+            n,
+            trueness: mean,
+            sd,
+            tau,
+            precision,
+            rms,
+            significance: Significance::of(mean, precision),
+        }
     }
 
     /// The cell with T, s, P and RMS rounded to multiples of `resolution` (mm or deg), and its
     /// significance judged on the rounded values, so arithmetic round-off far below the
     /// resolution never makes a cell significant.
     pub fn at_resolution(self, resolution: f64) -> Cell {
-        let q = |x: f64| if x.is_finite() { (x / resolution).round() * resolution } else { x };
+        let q = |x: f64| {
+            if x.is_finite() {
+                (x / resolution).round() * resolution
+            } else {
+                x
+            }
+        };
         let (trueness, precision) = (q(self.trueness), q(self.precision));
-        Cell { trueness, sd: q(self.sd), precision, rms: q(self.rms), significance: Significance::of(trueness, precision), ..self }
+        Cell {
+            trueness,
+            sd: q(self.sd),
+            precision,
+            rms: q(self.rms),
+            significance: Significance::of(trueness, precision),
+            ..self
+        }
     }
 
     /// Per-measurement 95 % limits as RSA guidelines report them: ±1.96·SD.
@@ -145,9 +169,22 @@ mod tests {
         ];
         for (n, sided, want) in cases {
             let tau = Confidence { level: 0.95, sided }.tau(n).unwrap();
-            assert!((tau - want).abs() < 5e-4, "N={n} {sided:?}: {tau} vs {want}");
+            assert!(
+                (tau - want).abs() < 5e-4,
+                "N={n} {sided:?}: {tau} vs {want}"
+            );
         }
-        assert!((Confidence { level: 0.99, sided: Sided::Two }.tau(20).unwrap() - 2.861).abs() < 5e-4);
+        assert!(
+            (Confidence {
+                level: 0.99,
+                sided: Sided::Two
+            }
+            .tau(20)
+            .unwrap()
+                - 2.861)
+                .abs()
+                < 5e-4
+        );
         assert_eq!(Confidence::default().tau(1), None);
     }
 
@@ -164,10 +201,15 @@ mod tests {
         assert_eq!(c.significance, Significance::Positive);
         assert!((c.limits_95() - 1.96 * 2.5f64.sqrt()).abs() < 1e-12);
         // Round-off below the resolution is neither precision nor bias.
-        let c = Cell::from_residuals(&[0.1 + 1e-17, 0.1, 0.1 - 1e-17, 1e-16 + 0.1], &Confidence::default()).at_resolution(1e-12);
+        let c = Cell::from_residuals(
+            &[0.1 + 1e-17, 0.1, 0.1 - 1e-17, 1e-16 + 0.1],
+            &Confidence::default(),
+        )
+        .at_resolution(1e-12);
         assert_eq!((c.sd, c.precision), (0.0, 0.0));
         assert_eq!(c.significance, Significance::Positive);
-        let c = Cell::from_residuals(&[-3e-16, -2e-16, -3e-16], &Confidence::default()).at_resolution(1e-12);
+        let c = Cell::from_residuals(&[-3e-16, -2e-16, -3e-16], &Confidence::default())
+            .at_resolution(1e-12);
         assert_eq!((c.trueness, c.significance), (0.0, Significance::None));
         let c = Cell::from_residuals(&[-1.0, 0.5, 0.2], &Confidence::default());
         assert_eq!(c.significance, Significance::None);

@@ -9,7 +9,11 @@ use super::Run;
 
 /// Errors for phantoms that are not strictly between a source and its detector in some run, and
 /// warnings for phantoms that project partly outside a detector in some runs.
-pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel], runs: &[Run]) -> Vec<Diagnostic> {
+pub fn check_geometry(
+    loaded: &LoadedScenario,
+    models: &[PhantomModel],
+    runs: &[Run],
+) -> Vec<Diagnostic> {
     let mut out = Vec::new();
     let s = &loaded.scenario;
     for (pi, model) in models.iter().enumerate() {
@@ -40,14 +44,21 @@ pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel], runs: &[
                         break;
                     }
                     if z + radius >= s_local.z {
-                        misplaced.get_or_insert((run.id.clone(), "reaches the source or beyond it".into()));
+                        misplaced.get_or_insert((
+                            run.id.clone(),
+                            "reaches the source or beyond it".into(),
+                        ));
                         break;
                     }
-                    let Some(uv) = frame.project(source, world) else { continue };
+                    let Some(uv) = frame.project(source, world) else {
+                        continue;
+                    };
                     let magnification = s_local.z / (s_local.z - z);
-                    let r_px = radius * magnification / frame.pixel_pitch_mm[0].min(frame.pixel_pitch_mm[1]);
+                    let r_px = radius * magnification
+                        / frame.pixel_pitch_mm[0].min(frame.pixel_pitch_mm[1]);
                     let [w, h] = frame.pixels.map(f64::from);
-                    if uv.x - r_px < 0.0 || uv.y - r_px < 0.0 || uv.x + r_px > w || uv.y + r_px > h {
+                    if uv.x - r_px < 0.0 || uv.y - r_px < 0.0 || uv.x + r_px > w || uv.y + r_px > h
+                    {
                         outside = true;
                     }
                 }

@@ -51,14 +51,25 @@ pub fn expand(s: &Scenario, models: &[PhantomModel]) -> Vec<Run> {
 }
 
 /// One run: the draws of its geometry stream applied to the nominal set-up.
-pub fn expand_run(s: &Scenario, models: &[PhantomModel], level_index: u32, level: f64, run_index: u32) -> Run {
+pub fn expand_run(
+    s: &Scenario,
+    models: &[PhantomModel],
+    level_index: u32,
+    level: f64,
+    run_index: u32,
+) -> Run {
     let label = geometry_stream_label(s.seed, level_index, run_index);
     let mut rng = random::stream(&label);
 
     let sources: Vec<(String, DVec3)> = s
         .sources
         .iter()
-        .map(|src| (src.id.clone(), DVec3::from_array(src.position_mm) + offset(&mut rng, src.randomize.position_mm)))
+        .map(|src| {
+            (
+                src.id.clone(),
+                DVec3::from_array(src.position_mm) + offset(&mut rng, src.randomize.position_mm),
+            )
+        })
         .collect();
     let detectors: Vec<Pose> = s
         .detectors
@@ -87,7 +98,10 @@ pub fn expand_run(s: &Scenario, models: &[PhantomModel], level_index: u32, level
         box_pose_in_scanner: box_pose,
         sources: sources
             .into_iter()
-            .map(|(id, p)| SourceState { id, position_mm: to_box.to_world(p) })
+            .map(|(id, p)| SourceState {
+                id,
+                position_mm: to_box.to_world(p),
+            })
             .collect(),
         detectors: s
             .detectors
@@ -131,7 +145,10 @@ pub fn expand_run(s: &Scenario, models: &[PhantomModel], level_index: u32, level
         exposures: s
             .exposures
             .iter()
-            .map(|e| ExposureState { id: e.id.clone(), phantoms: e.phantoms.clone() })
+            .map(|e| ExposureState {
+                id: e.id.clone(),
+                phantoms: e.phantoms.clone(),
+            })
             .collect(),
     }
 }
@@ -140,10 +157,18 @@ fn offset(rng: &mut ChaCha8Rng, half_widths: [f64; 3]) -> DVec3 {
     DVec3::from_array(half_widths.map(|h| random::symmetric(rng, h)))
 }
 
-fn draw_pose(rng: &mut ChaCha8Rng, position_mm: [f64; 3], rotation_deg: [f64; 3], range: &PoseRange) -> Pose {
+fn draw_pose(
+    rng: &mut ChaCha8Rng,
+    position_mm: [f64; 3],
+    rotation_deg: [f64; 3],
+    range: &PoseRange,
+) -> Pose {
     let position = DVec3::from_array(position_mm) + offset(rng, range.position_mm);
     let turn = range.rotation_deg.map(|h| random::symmetric(rng, h));
-    Pose { position_mm: position, rotation: rotation_xyz_deg(rotation_deg) * rotation_xyz_deg(turn) }
+    Pose {
+        position_mm: position,
+        rotation: rotation_xyz_deg(rotation_deg) * rotation_xyz_deg(turn),
+    }
 }
 
 #[cfg(test)]
@@ -198,7 +223,8 @@ phantoms = ["box", "b"]
             .replace("RUNS", &runs.to_string())
             .replace("[0.0, 0.5]", levels)
             .replace("SRC", &format!("{source_range:.1}"));
-        let loaded = from_text(&text, Path::new("t.toml"), Path::new(".")).unwrap_or_else(|e| panic!("{e:?}"));
+        let loaded = from_text(&text, Path::new("t.toml"), Path::new("."))
+            .unwrap_or_else(|e| panic!("{e:?}"));
         let models = phantom::build(&loaded).unwrap();
         expand(&loaded.scenario, &models)
     }
@@ -207,7 +233,10 @@ phantoms = ["box", "b"]
     fn run_k_of_level_n_does_not_depend_on_the_run_count_or_other_levels() {
         let few = runs(3, "[0.0, 0.5]", 20.0);
         let many = runs(200, "[0.0, 0.5]", 20.0);
-        assert_eq!(few[4], many.iter().find(|r| r.id == "n1-r01").unwrap().clone());
+        assert_eq!(
+            few[4],
+            many.iter().find(|r| r.id == "n1-r01").unwrap().clone()
+        );
         assert_eq!(many.len(), 400);
         assert_eq!(many[399].id, "n1-r199");
         // Adding a level in front shifts indices, so the level keeps its index: add one at the end.

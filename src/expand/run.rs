@@ -39,7 +39,11 @@ pub struct Run {
 impl Run {
     /// The focus position of the source a detector pairs with, mm, box frame.
     pub fn source_of(&self, detector: &DetectorState) -> DVec3 {
-        self.sources.iter().find(|s| s.id == detector.source).expect("validated: every detector names a source").position_mm
+        self.sources
+            .iter()
+            .find(|s| s.id == detector.source)
+            .expect("validated: every detector names a source")
+            .position_mm
     }
 }
 
@@ -82,12 +86,19 @@ pub struct DetectorState {
 impl DetectorState {
     /// The detector's pose in the box frame.
     pub fn pose(&self) -> Pose {
-        Pose { position_mm: self.position_mm, rotation: self.rotation }
+        Pose {
+            position_mm: self.position_mm,
+            rotation: self.rotation,
+        }
     }
 
     /// The detector's pixel frame, for projection and tracing.
     pub fn frame(&self) -> DetectorFrame {
-        DetectorFrame { pose: self.pose(), pixels: self.pixels, pixel_pitch_mm: self.pixel_pitch_mm }
+        DetectorFrame {
+            pose: self.pose(),
+            pixels: self.pixels,
+            pixel_pitch_mm: self.pixel_pitch_mm,
+        }
     }
 
     /// I_max = 2^bpp − 1.
@@ -119,7 +130,10 @@ pub struct PhantomState {
 impl PhantomState {
     /// The phantom's pose in the box frame.
     pub fn pose(&self) -> Pose {
-        Pose { position_mm: self.position_mm, rotation: self.rotation }
+        Pose {
+            position_mm: self.position_mm,
+            rotation: self.rotation,
+        }
     }
 }
 

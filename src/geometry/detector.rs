@@ -23,7 +23,8 @@ pub struct DetectorFrame {
 impl DetectorFrame {
     /// World position of the centre of pixel (column `i`, row `j`).
     pub fn pixel_centre_world(&self, i: u32, j: u32) -> DVec3 {
-        self.pose.to_world(self.pixel_local(i as f64 + 0.5, j as f64 + 0.5))
+        self.pose
+            .to_world(self.pixel_local(i as f64 + 0.5, j as f64 + 0.5))
     }
 
     /// Detector-frame position (z = 0) of continuous pixel coordinates (u, v).
@@ -62,7 +63,10 @@ impl DetectorFrame {
 
     /// Width and height of the active area in mm.
     pub fn size_mm(&self) -> [f64; 2] {
-        [self.pixels[0] as f64 * self.pixel_pitch_mm[0], self.pixels[1] as f64 * self.pixel_pitch_mm[1]]
+        [
+            self.pixels[0] as f64 * self.pixel_pitch_mm[0],
+            self.pixels[1] as f64 * self.pixel_pitch_mm[1],
+        ]
     }
 
     /// Whether continuous pixel coordinates fall on the active area.
@@ -87,7 +91,10 @@ mod tests {
     fn pixel_centres_follow_design_md() {
         let d = frame();
         // Pixel (0, 0): x = (0.5 − 2)·0.5 = −0.75, y = (0.5 − 1)·0.25 = −0.125.
-        assert_eq!(d.pixel_centre_world(0, 0), DVec3::new(-0.75, -0.125, -500.0));
+        assert_eq!(
+            d.pixel_centre_world(0, 0),
+            DVec3::new(-0.75, -0.125, -500.0)
+        );
         assert_eq!(d.pixel_centre_world(3, 1), DVec3::new(0.75, 0.125, -500.0));
     }
 
@@ -104,6 +111,9 @@ mod tests {
             assert!((uv - DVec2::new(i as f64 + 0.5, j as f64 + 0.5)).length() < 1e-9);
         }
         // A point behind the source does not project.
-        assert!(d.project(source, source + (source - d.pose.position_mm)).is_none());
+        assert!(
+            d.project(source, source + (source - d.pose.position_mm))
+                .is_none()
+        );
     }
 }

@@ -23,11 +23,17 @@ pub struct Pose {
 
 impl Pose {
     /// The identity pose (local frame = world frame).
-    pub const IDENTITY: Pose = Pose { position_mm: DVec3::ZERO, rotation: DMat3::IDENTITY };
+    pub const IDENTITY: Pose = Pose {
+        position_mm: DVec3::ZERO,
+        rotation: DMat3::IDENTITY,
+    };
 
     /// A pose from a position in mm and X-Y-Z Euler angles in degrees (see [`rotation_xyz_deg`]).
     pub fn from_position_euler_deg(position_mm: [f64; 3], rotation_deg: [f64; 3]) -> Pose {
-        Pose { position_mm: DVec3::from_array(position_mm), rotation: rotation_xyz_deg(rotation_deg) }
+        Pose {
+            position_mm: DVec3::from_array(position_mm),
+            rotation: rotation_xyz_deg(rotation_deg),
+        }
     }
 
     /// Maps a point given in the local frame to the world frame.
@@ -43,7 +49,10 @@ impl Pose {
     /// The pose that undoes this one: `self.inverse().to_world(self.to_world(p)) == p`.
     pub fn inverse(&self) -> Pose {
         let rt = self.rotation.transpose();
-        Pose { position_mm: -(rt * self.position_mm), rotation: rt }
+        Pose {
+            position_mm: -(rt * self.position_mm),
+            rotation: rt,
+        }
     }
 
     /// Composition `self ∘ inner`: first `inner`, then `self` (`self.to_world(inner.to_world(p))`).
@@ -80,7 +89,10 @@ pub fn euler_xyz_deg(m: &DMat3) -> [f64; 3] {
     let sb = m.z_axis.x.clamp(-1.0, 1.0);
     let b = libm::asin(sb);
     let (a, c) = if sb.abs() < 1.0 - 1e-12 {
-        (libm::atan2(-m.z_axis.y, m.z_axis.z), libm::atan2(-m.y_axis.x, m.x_axis.x))
+        (
+            libm::atan2(-m.z_axis.y, m.z_axis.z),
+            libm::atan2(-m.y_axis.x, m.x_axis.x),
+        )
     } else {
         (libm::atan2(m.y_axis.z, m.y_axis.y), 0.0)
     };
@@ -90,12 +102,21 @@ pub fn euler_xyz_deg(m: &DMat3) -> [f64; 3] {
 /// A rotation matrix as three rows, the form every JSON file of rsasim uses.
 pub fn rotation_rows(m: &DMat3) -> [[f64; 3]; 3] {
     let t = m.transpose();
-    [t.x_axis.to_array(), t.y_axis.to_array(), t.z_axis.to_array()]
+    [
+        t.x_axis.to_array(),
+        t.y_axis.to_array(),
+        t.z_axis.to_array(),
+    ]
 }
 
 /// The matrix whose rows are `rows` (the inverse of [`rotation_rows`]).
 pub fn rotation_from_rows(rows: [[f64; 3]; 3]) -> DMat3 {
-    DMat3::from_cols(DVec3::from_array(rows[0]), DVec3::from_array(rows[1]), DVec3::from_array(rows[2])).transpose()
+    DMat3::from_cols(
+        DVec3::from_array(rows[0]),
+        DVec3::from_array(rows[1]),
+        DVec3::from_array(rows[2]),
+    )
+    .transpose()
 }
 
 /// Serde for a `DVec3` as a plain `[x, y, z]` array.
@@ -137,14 +158,28 @@ mod tests {
     #[test]
     fn rotations_are_right_handed_about_each_axis() {
         // +90° about z takes x to y; about x takes y to z; about y takes z to x.
-        assert!(close(rotation_xyz_deg([0.0, 0.0, 90.0]) * DVec3::X, DVec3::Y));
-        assert!(close(rotation_xyz_deg([90.0, 0.0, 0.0]) * DVec3::Y, DVec3::Z));
-        assert!(close(rotation_xyz_deg([0.0, 90.0, 0.0]) * DVec3::Z, DVec3::X));
+        assert!(close(
+            rotation_xyz_deg([0.0, 0.0, 90.0]) * DVec3::X,
+            DVec3::Y
+        ));
+        assert!(close(
+            rotation_xyz_deg([90.0, 0.0, 0.0]) * DVec3::Y,
+            DVec3::Z
+        ));
+        assert!(close(
+            rotation_xyz_deg([0.0, 90.0, 0.0]) * DVec3::Z,
+            DVec3::X
+        ));
     }
 
     #[test]
     fn euler_round_trip_matches_the_factor_order() {
-        for angles in [[10.0, -20.0, 30.0], [-170.0, 45.0, 5.0], [0.3, 0.0, -0.7], [120.0, -80.0, 179.0]] {
+        for angles in [
+            [10.0, -20.0, 30.0],
+            [-170.0, 45.0, 5.0],
+            [0.3, 0.0, -0.7],
+            [120.0, -80.0, 179.0],
+        ] {
             let m = rotation_xyz_deg(angles);
             let back = euler_xyz_deg(&m);
             for k in 0..3 {
@@ -172,7 +207,12 @@ mod tests {
         let pose = Pose::from_position_euler_deg([1.0, 2.0, 3.0], [0.0, 0.0, 90.0]);
         let v: serde_json::Value = serde_json::to_value(pose).unwrap();
         // Row 0 of Rz(90°) is (cos, −sin, 0) = (0, −1, 0).
-        let row0: Vec<f64> = v["rotation"][0].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let row0: Vec<f64> = v["rotation"][0]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
         assert!((row0[0]).abs() < 1e-15 && (row0[1] + 1.0).abs() < 1e-15 && row0[2] == 0.0);
         let back: Pose = serde_json::from_value(v).unwrap();
         assert_eq!(back, pose);

@@ -10,7 +10,10 @@ use crate::scenario::hex;
 /// Writes `bytes` to a temporary file beside `path`, syncs it, then renames it over `path`.
 /// Returns the SHA-256 of the bytes, lowercase hex.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<String> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let mut builder = tempfile::Builder::new();
     builder.prefix(".rsasim-").suffix(".partial");
     // Temporary files are created 0600; outputs are ordinary files for every reader (0644).
@@ -37,7 +40,10 @@ impl StagedDir {
         if target.exists() && !force {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::AlreadyExists,
-                format!("output folder {} already exists; pass --force to replace it, or --out to choose another", target.display()),
+                format!(
+                    "output folder {} already exists; pass --force to replace it, or --out to choose another",
+                    target.display()
+                ),
             ));
         }
         let mut name = target.file_name().unwrap_or_default().to_os_string();
@@ -47,7 +53,10 @@ impl StagedDir {
             std::fs::remove_dir_all(&staging)?;
         }
         std::fs::create_dir_all(&staging)?;
-        Ok(StagedDir { staging, target: target.to_path_buf() })
+        Ok(StagedDir {
+            staging,
+            target: target.to_path_buf(),
+        })
     }
 
     /// The folder files are written into now.
@@ -75,14 +84,20 @@ mod tests {
         let target = root.path().join("out");
         let staged = StagedDir::create(&target, false).unwrap();
         let sha = write_atomic(&staged.path().join("a.txt"), b"abc").unwrap();
-        assert_eq!(sha, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+        assert_eq!(
+            sha,
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
         assert!(!target.exists());
         staged.commit().unwrap();
         assert_eq!(std::fs::read(target.join("a.txt")).unwrap(), b"abc");
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            let mode = std::fs::metadata(target.join("a.txt")).unwrap().permissions().mode();
+            let mode = std::fs::metadata(target.join("a.txt"))
+                .unwrap()
+                .permissions()
+                .mode();
             assert_eq!(mode & 0o777, 0o644);
         }
         assert!(StagedDir::create(&target, false).is_err());

@@ -198,7 +198,16 @@ mod tests {
     ];
 
     fn noisy(w: usize, h: usize, level: f64, i_max: u16) -> Vec<f32> {
-        crate::output::test_image::noisy_disc(w, h, level, i_max, &NoiseKey::derive(4, 0, 0, "exr", "test")).into_iter().map(f32::from).collect()
+        crate::output::test_image::noisy_disc(
+            w,
+            h,
+            level,
+            i_max,
+            &NoiseKey::derive(4, 0, 0, "exr", "test"),
+        )
+        .into_iter()
+        .map(f32::from)
+        .collect()
     }
 
     fn attrs() -> Vec<(&'static str, ExrAttr)> {

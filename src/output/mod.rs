@@ -14,9 +14,13 @@ pub use truth::{FileRef, ImageTruth, ProjectedMarker, TRUTH_FORMAT, Truth};
 
 /// Checks that `out` is a folder written by `rsasim SCENARIO.toml` (it holds `scenario.toml`,
 /// `manifest.json` and `runs/`), so commands that read one say so instead of failing on a file.
-pub fn check_output_folder(out: &std::path::Path) -> Result<(), Vec<crate::diagnostic::Diagnostic>> {
-    let missing: Vec<&str> =
-        ["scenario.toml", "manifest.json", "runs"].into_iter().filter(|name| !out.join(name).exists()).collect();
+pub fn check_output_folder(
+    out: &std::path::Path,
+) -> Result<(), Vec<crate::diagnostic::Diagnostic>> {
+    let missing: Vec<&str> = ["scenario.toml", "manifest.json", "runs"]
+        .into_iter()
+        .filter(|name| !out.join(name).exists())
+        .collect();
     if missing.is_empty() {
         return Ok(());
     }
@@ -37,8 +41,14 @@ pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
     vec![
         ("scenario", crate::scenario::json_schema()),
         ("truth", schemars::schema_for!(Truth).as_value().clone()),
-        ("measured", schemars::schema_for!(Measured).as_value().clone()),
-        ("manifest", schemars::schema_for!(Manifest).as_value().clone()),
+        (
+            "measured",
+            schemars::schema_for!(Measured).as_value().clone(),
+        ),
+        (
+            "manifest",
+            schemars::schema_for!(Manifest).as_value().clone(),
+        ),
     ]
 }
 

@@ -111,7 +111,13 @@ mod tests {
     ];
 
     fn noisy(w: usize, h: usize, level: f64, i_max: u16) -> Vec<u16> {
-        crate::output::test_image::noisy_disc(w, h, level, i_max, &NoiseKey::derive(3, 0, 0, "tiff", "test"))
+        crate::output::test_image::noisy_disc(
+            w,
+            h,
+            level,
+            i_max,
+            &NoiseKey::derive(3, 0, 0, "tiff", "test"),
+        )
     }
 
     fn decode(bytes: &[u8]) -> (u32, u32, Vec<u16>, String, String, u16, u16) {

@@ -59,7 +59,9 @@ mod tests {
             bead_diameter_mm: 1.0,
             omit: vec![[2, 1]],
         };
-        let m = box_markers(&CalibrationBox { plates: vec![plate] });
+        let m = box_markers(&CalibrationBox {
+            plates: vec![plate],
+        });
         assert_eq!(m.len(), 5);
         assert_eq!(m[0].id, "F-00-00");
         // Column 0, row 0: local (−10, −10, 0); Ry(90°) maps local x to −z.

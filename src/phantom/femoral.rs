@@ -115,7 +115,8 @@ pub fn femoral_component() -> FemoralComponent {
     let bone = BoneBox::new(&outer);
     let (grid, values) = sample_solid(&outer, &bone);
     // The grid encloses the solid with a margin, so the surface always closes.
-    let surface = marching_tetrahedra(&grid, &values).unwrap_or_else(|e| panic!("femoral component grid: {e}"));
+    let surface = marching_tetrahedra(&grid, &values)
+        .unwrap_or_else(|e| panic!("femoral component grid: {e}"));
 
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
@@ -124,13 +125,27 @@ pub fn femoral_component() -> FemoralComponent {
         hi = hi.max(*v);
     }
     let centre = (lo + hi) * 0.5;
-    let vertices = surface.vertices.iter().map(|v| (*v - centre).as_vec3().to_array()).collect();
+    let vertices = surface
+        .vertices
+        .iter()
+        .map(|v| (*v - centre).as_vec3().to_array())
+        .collect();
     let beads = BEAD_CENTRES_MM
         .iter()
         .enumerate()
-        .map(|(i, p)| FemoralBead { id: format!("K{}", i + 1), position_mm: *p, diameter_mm: BEAD_DIAMETER })
+        .map(|(i, p)| FemoralBead {
+            id: format!("K{}", i + 1),
+            position_mm: *p,
+            diameter_mm: BEAD_DIAMETER,
+        })
         .collect();
-    FemoralComponent { mesh: TriMesh { vertices, triangles: surface.triangles }, beads }
+    FemoralComponent {
+        mesh: TriMesh {
+            vertices,
+            triangles: surface.triangles,
+        },
+        beads,
+    }
 }
 
 /// The sampling grid (design frame: lowest point at y = 0) and the implicit function at its nodes.
@@ -139,9 +154,14 @@ fn sample_solid(outer: &Polygon, bone: &BoneBox) -> (Grid, Vec<f64>) {
     let z_min = -outer.support([-1.0, 0.0]);
     let z_max = outer.support([1.0, 0.0]);
     // A fractional offset keeps nodes off the flat faces (no systematic zero values).
-    let origin = DVec3::new(-HALF_WIDTH, 0.0, z_min) - DVec3::new(2.0 - 0.13, 2.0 - 0.29, 2.0 - 0.41) * h;
+    let origin =
+        DVec3::new(-HALF_WIDTH, 0.0, z_min) - DVec3::new(2.0 - 0.13, 2.0 - 0.29, 2.0 - 0.41) * h;
     let count = |extent: f64, h: f64| (extent / h).ceil() as usize + 5;
-    let n = [count(2.0 * HALF_WIDTH, h.x), count(Y_TOP_ANT, h.y), count(z_max - z_min, h.z)];
+    let n = [
+        count(2.0 * HALF_WIDTH, h.x),
+        count(Y_TOP_ANT, h.y),
+        count(z_max - z_min, h.z),
+    ];
     let grid = Grid { origin, step: h, n };
     // The sagittal distances do not depend on x: tabulate them once per (y, z) node.
     let (ny, nz) = (grid.n[1], grid.n[2]);
@@ -189,13 +209,18 @@ fn solid(p: DVec3, s_outer: f64, s_bone: f64) -> f64 {
     let condyle_centre = 0.5 * (NOTCH_HALF_WIDTH + HALF_WIDTH);
     let u = p.x.abs().clamp(NOTCH_HALF_WIDTH, HALF_WIDTH) - condyle_centre;
     let dome = u * u / (2.0 * R_CORONAL) * (1.0 - anterior);
-    let half_width = HALF_WIDTH - FLANGE_TAPER * (p.y - TAPER_START_Y).max(0.0) * smoothstep(-5.0, 5.0, p.z);
+    let half_width =
+        HALF_WIDTH - FLANGE_TAPER * (p.y - TAPER_START_Y).max(0.0) * smoothstep(-5.0, 5.0, p.z);
     let sides = p.x.abs() - half_width;
     let cap = p.y - if p.z > 0.0 { Y_TOP_ANT } else { Y_TOP_POST };
     let outer = round_intersection(s_outer + groove + dome, sides, R_SIDE);
     let outer = round_intersection(outer, cap, R_CAP);
     let metal = round_intersection(outer, -s_bone, R_INNER);
-    let notch = round_intersection(p.x.abs() - NOTCH_HALF_WIDTH, p.z - NOTCH_END_Z, NOTCH_HALF_WIDTH);
+    let notch = round_intersection(
+        p.x.abs() - NOTCH_HALF_WIDTH,
+        p.z - NOTCH_END_Z,
+        NOTCH_HALF_WIDTH,
+    );
     round_intersection(metal, -notch, R_NOTCH_EDGE)
 }
 

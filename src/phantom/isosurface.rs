@@ -55,19 +55,32 @@ pub fn marching_tetrahedra(grid: &Grid, values: &[f64]) -> Result<Surface, Strin
         return Err(format!("grid steps {} must be positive", grid.step));
     }
     if nx < 2 || ny < 2 || nz < 2 || values.len() != nx * ny * nz {
-        return Err(format!("grid of {:?} nodes does not match {} values", grid.n, values.len()));
+        return Err(format!(
+            "grid of {:?} nodes does not match {} values",
+            grid.n,
+            values.len()
+        ));
     }
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                let boundary = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1;
+                let boundary =
+                    i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1;
                 if boundary && values[grid.index(i, j, k)] < 0.0 {
-                    return Err(format!("the solid reaches the grid boundary at node ({i}, {j}, {k}): enlarge the grid"));
+                    return Err(format!(
+                        "the solid reaches the grid boundary at node ({i}, {j}, {k}): enlarge the grid"
+                    ));
                 }
             }
         }
     }
-    let mut mc = March { grid, values, edge_vertex: vec![u32::MAX; values.len() * 7], vertices: Vec::new(), triangles: Vec::new() };
+    let mut mc = March {
+        grid,
+        values,
+        edge_vertex: vec![u32::MAX; values.len() * 7],
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+    };
     for k in 0..nz - 1 {
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
@@ -75,7 +88,10 @@ pub fn marching_tetrahedra(grid: &Grid, values: &[f64]) -> Result<Surface, Strin
             }
         }
     }
-    Ok(Surface { vertices: mc.vertices, triangles: mc.triangles })
+    Ok(Surface {
+        vertices: mc.vertices,
+        triangles: mc.triangles,
+    })
 }
 
 /// Samples `f` at every node of `grid`, in the order [`marching_tetrahedra`] expects.
@@ -94,7 +110,14 @@ pub fn sample(grid: &Grid, mut f: impl FnMut(DVec3) -> f64) -> Vec<f64> {
 /// The six Kuhn tetrahedra of a cube as corner bit masks (bit 0 = +x, bit 1 = +y, bit 2 = +z):
 /// each walks from corner 0 to corner 7 adding one axis at a time, so every edge joins a corner to
 /// a superset corner.
-const TETS: [[u8; 4]; 6] = [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
+const TETS: [[u8; 4]; 6] = [
+    [0, 1, 3, 7],
+    [0, 1, 5, 7],
+    [0, 2, 3, 7],
+    [0, 2, 6, 7],
+    [0, 4, 5, 7],
+    [0, 4, 6, 7],
+];
 
 struct March<'a> {
     grid: &'a Grid,
@@ -106,7 +129,11 @@ struct March<'a> {
 }
 
 fn offset(corner: u8) -> [i64; 3] {
-    [i64::from(corner & 1), i64::from((corner >> 1) & 1), i64::from((corner >> 2) & 1)]
+    [
+        i64::from(corner & 1),
+        i64::from((corner >> 1) & 1),
+        i64::from((corner >> 2) & 1),
+    ]
 }
 
 /// Sign of det(b − a, c − a, d − a) for cube corners (exact, integer).
@@ -115,7 +142,8 @@ fn orientation(a: u8, b: u8, c: u8, d: u8) -> i64 {
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
     let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
-    let det = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) + u[2] * (v[0] * w[1] - v[1] * w[0]);
+    let det = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+        + u[2] * (v[0] * w[1] - v[1] * w[0]);
     det.signum()
 }
 
@@ -131,8 +159,16 @@ impl March<'_> {
         }
         let base = [i, j, k];
         for tet in TETS {
-            let ins: Vec<u8> = tet.iter().copied().filter(|&c| inside[c as usize]).collect();
-            let outs: Vec<u8> = tet.iter().copied().filter(|&c| !inside[c as usize]).collect();
+            let ins: Vec<u8> = tet
+                .iter()
+                .copied()
+                .filter(|&c| inside[c as usize])
+                .collect();
+            let outs: Vec<u8> = tet
+                .iter()
+                .copied()
+                .filter(|&c| !inside[c as usize])
+                .collect();
             let mut e = |a: u8, b: u8| self.edge(base, &nodes, a, b);
             match (ins.as_slice(), outs.as_slice()) {
                 (&[a], &[o1, o2, o3]) => {
@@ -160,7 +196,8 @@ impl March<'_> {
     }
 
     fn push(&mut self, tri: [u32; 3], flip: bool) {
-        self.triangles.push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
+        self.triangles
+            .push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
     }
 
     /// The surface vertex on the edge between cube corners `a` and `b` (one inside, one outside).
@@ -170,7 +207,10 @@ impl March<'_> {
         if self.edge_vertex[key] != u32::MAX {
             return self.edge_vertex[key];
         }
-        let (f0, f1) = (self.values[nodes[lo as usize]], self.values[nodes[hi as usize]]);
+        let (f0, f1) = (
+            self.values[nodes[lo as usize]],
+            self.values[nodes[hi as usize]],
+        );
         let t = (f0 / (f0 - f1)).clamp(EDGE_CLAMP, 1.0 - EDGE_CLAMP);
         let corner = |c: u8| {
             let [dx, dy, dz] = offset(c).map(|o| o as usize);
@@ -191,14 +231,22 @@ mod tests {
 
     fn to_mesh(s: &Surface) -> TriMesh {
         TriMesh {
-            vertices: s.vertices.iter().map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect(),
+            vertices: s
+                .vertices
+                .iter()
+                .map(|v| [v.x as f32, v.y as f32, v.z as f32])
+                .collect(),
             triangles: s.triangles.clone(),
         }
     }
 
     #[test]
     fn a_sphere_is_closed_outward_and_close_to_its_volume() {
-        let grid = Grid { origin: DVec3::splat(-6.0), step: DVec3::splat(0.5), n: [25, 25, 25] };
+        let grid = Grid {
+            origin: DVec3::splat(-6.0),
+            step: DVec3::splat(0.5),
+            n: [25, 25, 25],
+        };
         let values = sample(&grid, |p| p.length() - 5.0);
         let mesh = to_mesh(&marching_tetrahedra(&grid, &values).unwrap());
         mesh.check_closed().unwrap();
@@ -210,7 +258,11 @@ mod tests {
     #[test]
     fn zero_node_values_and_two_touching_boxes_stay_manifold() {
         // Node values exactly zero on the faces, and two boxes meeting along an edge line.
-        let grid = Grid { origin: DVec3::splat(-4.0), step: DVec3::new(1.0, 0.9, 1.1), n: [9, 9, 9] };
+        let grid = Grid {
+            origin: DVec3::splat(-4.0),
+            step: DVec3::new(1.0, 0.9, 1.1),
+            n: [9, 9, 9],
+        };
         let values = sample(&grid, |p| {
             let a = (p - DVec3::splat(-1.0)).abs().max_element() - 1.0;
             let b = (p - DVec3::splat(1.0)).abs().max_element() - 1.0;
@@ -223,8 +275,16 @@ mod tests {
 
     #[test]
     fn a_solid_touching_the_boundary_is_refused() {
-        let grid = Grid { origin: DVec3::ZERO, step: DVec3::ONE, n: [3, 3, 3] };
+        let grid = Grid {
+            origin: DVec3::ZERO,
+            step: DVec3::ONE,
+            n: [3, 3, 3],
+        };
         let values = sample(&grid, |p| p.length() - 1.5);
-        assert!(marching_tetrahedra(&grid, &values).unwrap_err().contains("boundary"));
+        assert!(
+            marching_tetrahedra(&grid, &values)
+                .unwrap_err()
+                .contains("boundary")
+        );
     }
 }

@@ -24,12 +24,16 @@ impl TriMesh {
         }
         let n = self.vertices.len() as u32;
         // Directed edge -> how many times it is used.
-        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 3);
+        let mut directed: HashMap<(u32, u32), u32> =
+            HashMap::with_capacity(self.triangles.len() * 3);
         for (t, tri) in self.triangles.iter().enumerate() {
             if tri.iter().any(|&i| i >= n) {
-                return Err(format!("triangle {t} refers to a vertex index beyond the {n} vertices"));
+                return Err(format!(
+                    "triangle {t} refers to a vertex index beyond the {n} vertices"
+                ));
             }
-            let [a, b, c] = tri.map(|i| DVec3::from_array(self.vertices[i as usize].map(f64::from)));
+            let [a, b, c] =
+                tri.map(|i| DVec3::from_array(self.vertices[i as usize].map(f64::from)));
             if (b - a).cross(c - a).length_squared() == 0.0 {
                 return Err(format!("triangle {t} has zero area (degenerate)"));
             }
@@ -46,7 +50,9 @@ impl TriMesh {
                 ));
             }
             if !directed.contains_key(&(v, u)) {
-                return Err(format!("edge {u}-{v} belongs to one triangle only: the mesh has a hole (it is not closed)"));
+                return Err(format!(
+                    "edge {u}-{v} belongs to one triangle only: the mesh has a hole (it is not closed)"
+                ));
             }
         }
         Ok(())
@@ -57,7 +63,8 @@ impl TriMesh {
         self.triangles
             .iter()
             .map(|t| {
-                let [a, b, c] = t.map(|i| DVec3::from_array(self.vertices[i as usize].map(f64::from)));
+                let [a, b, c] =
+                    t.map(|i| DVec3::from_array(self.vertices[i as usize].map(f64::from)));
                 a.dot(b.cross(c)) / 6.0
             })
             .sum()
@@ -114,7 +121,11 @@ impl TriMesh {
                 let phi = 2.0 * std::f64::consts::PI * s as f64 / segments as f64;
                 let (st, ct) = (libm::sin(theta), libm::cos(theta));
                 let (sp, cp) = (libm::sin(phi), libm::cos(phi));
-                vertices.push([(radius_mm * st * cp) as f32, (radius_mm * st * sp) as f32, (radius_mm * ct) as f32]);
+                vertices.push([
+                    (radius_mm * st * cp) as f32,
+                    (radius_mm * st * sp) as f32,
+                    (radius_mm * ct) as f32,
+                ]);
             }
         }
         vertices.push([0.0, 0.0, -radius_mm as f32]);
@@ -127,12 +138,20 @@ impl TriMesh {
         }
         for r in 1..rings - 1 {
             for s in 0..segments {
-                let (a, b, c, d) = (ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1));
+                let (a, b, c, d) = (
+                    ring(r, s),
+                    ring(r, s + 1),
+                    ring(r + 1, s),
+                    ring(r + 1, s + 1),
+                );
                 triangles.push([a, c, d]);
                 triangles.push([a, d, b]);
             }
         }
-        TriMesh { vertices, triangles }
+        TriMesh {
+            vertices,
+            triangles,
+        }
     }
 }
 
@@ -146,7 +165,10 @@ mod tests {
         m.check_closed().unwrap();
         let v = m.signed_volume_mm3();
         let exact = 4.0 / 3.0 * std::f64::consts::PI * 1000.0;
-        assert!(v > 0.0 && (v / exact - 1.0).abs() < 2e-3, "volume {v} vs {exact}");
+        assert!(
+            v > 0.0 && (v / exact - 1.0).abs() < 2e-3,
+            "volume {v} vs {exact}"
+        );
     }
 
     #[test]
@@ -156,13 +178,20 @@ mod tests {
         assert!(m.check_closed().unwrap_err().contains("hole"));
         let mut m = TriMesh::uv_sphere(10.0, 8, 8);
         m.triangles[3].swap(1, 2);
-        assert!(m.check_closed().unwrap_err().contains("inconsistently oriented"));
+        assert!(
+            m.check_closed()
+                .unwrap_err()
+                .contains("inconsistently oriented")
+        );
     }
 
     #[test]
     fn welding_a_triangle_soup_closes_it() {
         let m = TriMesh::uv_sphere(5.0, 6, 6);
-        let mut soup = TriMesh { vertices: Vec::new(), triangles: Vec::new() };
+        let mut soup = TriMesh {
+            vertices: Vec::new(),
+            triangles: Vec::new(),
+        };
         for t in &m.triangles {
             let base = soup.vertices.len() as u32;
             soup.vertices.extend(t.map(|i| m.vertices[i as usize]));

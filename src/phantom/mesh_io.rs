@@ -40,17 +40,29 @@ pub fn default_unit_mm(path: &Path) -> f64 {
 /// URI. The error says what is wrong with the file and what would be accepted.
 pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
     if !(unit_mm.is_finite() && unit_mm > 0.0) {
-        return Err(format!("unit_mm is {unit_mm}: it must be a positive number of millimetres per file unit"));
+        return Err(format!(
+            "unit_mm is {unit_mm}: it must be a positive number of millimetres per file unit"
+        ));
     }
     let shown = path.display();
     let mut mesh = match extension(path).as_str() {
         "glb" | "gltf" => load_gltf(path).map_err(|e| format!("{shown}: {e}"))?,
         "stl" => load_stl(path).map_err(|e| format!("{shown}: {e}"))?,
-        "" => return Err(format!("{shown} has no file extension: use .glb, .gltf or .stl")),
-        other => return Err(format!("{shown}: unsupported extension `.{other}`: use .glb, .gltf or .stl")),
+        "" => {
+            return Err(format!(
+                "{shown} has no file extension: use .glb, .gltf or .stl"
+            ));
+        }
+        other => {
+            return Err(format!(
+                "{shown}: unsupported extension `.{other}`: use .glb, .gltf or .stl"
+            ));
+        }
     };
     if mesh.triangles.is_empty() {
-        return Err(format!("{shown} contains no triangles: a phantom mesh needs a closed triangle surface"));
+        return Err(format!(
+            "{shown} contains no triangles: a phantom mesh needs a closed triangle surface"
+        ));
     }
     for v in &mut mesh.vertices {
         *v = v.map(|c| (f64::from(c) * unit_mm) as f32);
@@ -61,7 +73,9 @@ pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
 
 /// Lower-case file extension without the dot, or "" when there is none.
 fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 fn read_file(path: &Path) -> Result<Vec<u8>, String> {
@@ -77,16 +91,22 @@ fn load_stl(path: &Path) -> Result<TriMesh, String> {
     let mut triangles = Vec::with_capacity(stl.faces.len());
     for (f, face) in stl.faces.iter().enumerate() {
         if face.vertices.iter().any(|&i| i >= n) {
-            return Err(format!("facet {f} refers to a vertex beyond the {n} vertices"));
+            return Err(format!(
+                "facet {f} refers to a vertex beyond the {n} vertices"
+            ));
         }
         triangles.push(face.vertices.map(|i| i as u32));
     }
-    Ok(TriMesh { vertices, triangles })
+    Ok(TriMesh {
+        vertices,
+        triangles,
+    })
 }
 
 fn load_gltf(path: &Path) -> Result<TriMesh, String> {
     let bytes = read_file(path)?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF 2.0 file: {e}"))?;
+    let gltf =
+        gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF 2.0 file: {e}"))?;
     let names = MeshNames::from_bytes(&bytes);
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let buffers = resolve_buffers(&gltf, &base_dir)?;
@@ -95,7 +115,10 @@ fn load_gltf(path: &Path) -> Result<TriMesh, String> {
         Some(scene) => scene.nodes().collect(),
         None => gltf.document.scenes().flat_map(|s| s.nodes()).collect(),
     };
-    let mut mesh = TriMesh { vertices: Vec::new(), triangles: Vec::new() };
+    let mut mesh = TriMesh {
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+    };
     for node in roots {
         add_node(&node, DMat4::IDENTITY, 0, &buffers, &names, &mut mesh)?;
     }
@@ -113,12 +136,18 @@ impl MeshNames {
         } else {
             Some(Cow::Borrowed(bytes))
         };
-        let value: Option<serde_json::Value> = json_bytes.and_then(|j| serde_json::from_slice(&j).ok());
+        let value: Option<serde_json::Value> =
+            json_bytes.and_then(|j| serde_json::from_slice(&j).ok());
         let names = value
             .as_ref()
             .and_then(|v| v.get("meshes"))
             .and_then(|m| m.as_array())
-            .map(|meshes| meshes.iter().map(|m| m.get("name").and_then(|n| n.as_str()).map(str::to_owned)).collect())
+            .map(|meshes| {
+                meshes
+                    .iter()
+                    .map(|m| m.get("name").and_then(|n| n.as_str()).map(str::to_owned))
+                    .collect()
+            })
             .unwrap_or_default();
         MeshNames(names)
     }
@@ -161,17 +190,27 @@ fn read_uri(uri: &str, base_dir: &Path) -> Result<Vec<u8>, String> {
             .split_once(',')
             .ok_or_else(|| "the data URI has no `,` before its payload".to_string())?;
         if !header.ends_with(";base64") {
-            return Err("the data URI is not base64-encoded: use `data:application/octet-stream;base64,…`".into());
+            return Err(
+                "the data URI is not base64-encoded: use `data:application/octet-stream;base64,…`"
+                    .into(),
+            );
         }
         return base64::engine::general_purpose::STANDARD
             .decode(payload)
             .map_err(|e| format!("the data URI's base64 payload is invalid: {e}"));
     }
     if uri.contains("://") {
-        return Err(format!("buffer URI `{uri}` is remote: only relative file paths and data: URIs are read"));
+        return Err(format!(
+            "buffer URI `{uri}` is remote: only relative file paths and data: URIs are read"
+        ));
     }
     let file: PathBuf = base_dir.join(percent_decode(uri));
-    std::fs::read(&file).map_err(|e| format!("cannot read {} (the buffer URI, relative to the .gltf): {e}", file.display()))
+    std::fs::read(&file).map_err(|e| {
+        format!(
+            "cannot read {} (the buffer URI, relative to the .gltf): {e}",
+            file.display()
+        )
+    })
 }
 
 /// Decodes `%XX` escapes (URIs in glTF are percent-encoded); malformed escapes are kept verbatim.
@@ -215,28 +254,53 @@ fn add_node(
     if let Some(mesh) = node.mesh() {
         let flip = world.determinant() < 0.0;
         for prim in mesh.primitives() {
-            let what = || format!("primitive {} of {}", prim.index(), names.describe(mesh.index()));
+            let what = || {
+                format!(
+                    "primitive {} of {}",
+                    prim.index(),
+                    names.describe(mesh.index())
+                )
+            };
             if prim.mode() != gltf::mesh::Mode::Triangles {
-                return Err(format!("{} uses mode {:?}; only triangle meshes can be traced", what(), prim.mode()));
+                return Err(format!(
+                    "{} uses mode {:?}; only triangle meshes can be traced",
+                    what(),
+                    prim.mode()
+                ));
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
             let positions: Vec<[f32; 3]> = reader
                 .read_positions()
-                .ok_or_else(|| format!("{} has no readable POSITION attribute: it needs float VEC3 positions", what()))?
+                .ok_or_else(|| {
+                    format!(
+                        "{} has no readable POSITION attribute: it needs float VEC3 positions",
+                        what()
+                    )
+                })?
                 .collect();
             let n = positions.len() as u32;
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None if prim.indices().is_some() => {
-                    return Err(format!("{} has indices that cannot be read from its buffer", what()));
+                    return Err(format!(
+                        "{} has indices that cannot be read from its buffer",
+                        what()
+                    ));
                 }
                 None => (0..n).collect(),
             };
             if !indices.len().is_multiple_of(3) {
-                return Err(format!("{} has {} indices, not a multiple of 3: a triangle list needs three per triangle", what(), indices.len()));
+                return Err(format!(
+                    "{} has {} indices, not a multiple of 3: a triangle list needs three per triangle",
+                    what(),
+                    indices.len()
+                ));
             }
             if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
-                return Err(format!("{} uses vertex index {bad} but has only {n} positions", what()));
+                return Err(format!(
+                    "{} uses vertex index {bad} but has only {n} positions",
+                    what()
+                ));
             }
             let base = out.vertices.len() as u32;
             out.vertices.extend(positions.iter().map(|p| {
@@ -244,7 +308,11 @@ fn add_node(
                 [q.x as f32, q.y as f32, q.z as f32]
             }));
             out.triangles.extend(indices.chunks_exact(3).map(|t| {
-                if flip { [base + t[0], base + t[2], base + t[1]] } else { [base + t[0], base + t[1], base + t[2]] }
+                if flip {
+                    [base + t[0], base + t[2], base + t[1]]
+                } else {
+                    [base + t[0], base + t[1], base + t[2]]
+                }
             }));
         }
     }
@@ -258,7 +326,11 @@ fn add_node(
 /// float VEC3 with min/max, indices as u32, one mesh, one node, one scene. The same mesh always
 /// gives the same bytes.
 pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
-    let positions: Vec<[f32; 3]> = mesh.vertices.iter().map(|v| v.map(|c| (f64::from(c) / 1000.0) as f32)).collect();
+    let positions: Vec<[f32; 3]> = mesh
+        .vertices
+        .iter()
+        .map(|v| v.map(|c| (f64::from(c) / 1000.0) as f32))
+        .collect();
     let mut bin = Vec::with_capacity(positions.len() * 12 + mesh.triangles.len() * 12);
     for p in &positions {
         for c in p {
@@ -282,7 +354,13 @@ pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
         return Err("the mesh has no vertices: there is nothing to write".into());
     }
 
-    let mut root = json::Root { asset: json::Asset { generator: Some("rsasim".into()), ..Default::default() }, ..Default::default() };
+    let mut root = json::Root {
+        asset: json::Asset {
+            generator: Some("rsasim".into()),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     let buffer = root.push(json::Buffer {
         byte_length: json::validation::USize64::from(bin.len()),
         uri: None,
@@ -300,9 +378,24 @@ pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
             extras: Default::default(),
         })
     };
-    let pos_view = view(&mut root, 0, positions_len, json::buffer::Target::ArrayBuffer);
-    let idx_view = view(&mut root, positions_len, bin.len() - positions_len, json::buffer::Target::ElementArrayBuffer);
-    let accessor = |root: &mut json::Root, view, count: usize, ty, kind, min_max: Option<([f32; 3], [f32; 3])>| {
+    let pos_view = view(
+        &mut root,
+        0,
+        positions_len,
+        json::buffer::Target::ArrayBuffer,
+    );
+    let idx_view = view(
+        &mut root,
+        positions_len,
+        bin.len() - positions_len,
+        json::buffer::Target::ElementArrayBuffer,
+    );
+    let accessor = |root: &mut json::Root,
+                    view,
+                    count: usize,
+                    ty,
+                    kind,
+                    min_max: Option<([f32; 3], [f32; 3])>| {
         root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: Some(json::validation::USize64(0)),
@@ -347,23 +440,38 @@ pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
         }],
         weights: None,
     });
-    let node = root.push(json::Node { mesh: Some(gltf_mesh), ..Default::default() });
-    let scene = root.push(json::Scene { extensions: Default::default(), extras: Default::default(), nodes: vec![node] });
+    let node = root.push(json::Node {
+        mesh: Some(gltf_mesh),
+        ..Default::default()
+    });
+    let scene = root.push(json::Scene {
+        extensions: Default::default(),
+        extras: Default::default(),
+        nodes: vec![node],
+    });
     root.scene = Some(scene);
 
-    let json_bytes = json::serialize::to_vec(&root).map_err(|e| format!("cannot serialise the glTF JSON: {e}"))?;
+    let json_bytes = json::serialize::to_vec(&root)
+        .map_err(|e| format!("cannot serialise the glTF JSON: {e}"))?;
     let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: 0,
+        },
         json: Cow::Owned(json_bytes),
         bin: Some(Cow::Owned(bin)),
     };
-    glb.to_vec().map_err(|e| format!("cannot assemble the GLB: {e}"))
+    glb.to_vec()
+        .map_err(|e| format!("cannot assemble the GLB: {e}"))
 }
 
 /// Writes `mesh` as binary glTF 2.0 (see [`glb_bytes`]) to `writer`.
 pub fn write_glb<W: Write>(mesh: &TriMesh, mut writer: W) -> Result<(), String> {
     let bytes = glb_bytes(mesh)?;
-    writer.write_all(&bytes).map_err(|e| format!("cannot write the GLB: {e}"))
+    writer
+        .write_all(&bytes)
+        .map_err(|e| format!("cannot write the GLB: {e}"))
 }
 
 /// Writes `mesh` as binary STL in mm, one facet per triangle with its unit normal.

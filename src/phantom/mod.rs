@@ -66,8 +66,15 @@ impl PhantomModel {
     /// Every point that bounds the phantom's shape in its local frame, each with a radius:
     /// bead centres with their radii, and mesh vertices with radius 0.
     pub fn extent_points(&self) -> impl Iterator<Item = (DVec3, f64)> + '_ {
-        let beads = self.markers.iter().map(|m| (m.position_mm, m.diameter_mm / 2.0));
-        let verts = self.mesh.iter().flat_map(|m| m.vertices.iter().map(|v| (DVec3::from_array(v.map(f64::from)), 0.0)));
+        let beads = self
+            .markers
+            .iter()
+            .map(|m| (m.position_mm, m.diameter_mm / 2.0));
+        let verts = self.mesh.iter().flat_map(|m| {
+            m.vertices
+                .iter()
+                .map(|v| (DVec3::from_array(v.map(f64::from)), 0.0))
+        });
         beads.chain(verts)
     }
 }
@@ -80,23 +87,44 @@ pub fn build(loaded: &LoadedScenario) -> Result<Vec<PhantomModel>, Vec<Diagnosti
     for (i, ph) in loaded.scenario.phantoms.iter().enumerate() {
         let path = KeyPath::root().key("phantoms").index(i);
         let (markers, mesh, mesh_file) = match ph.shape() {
-            PhantomShape::Beads(beads) => (beads.iter().map(Marker::from_bead).collect(), None, None),
+            PhantomShape::Beads(beads) => {
+                (beads.iter().map(Marker::from_bead).collect(), None, None)
+            }
             PhantomShape::CalibrationBox(b) => (calibration_box::box_markers(b), None, None),
             PhantomShape::Mesh(m) => {
                 let file = loaded.base_dir.join(&m.file);
                 let unit = m.unit_mm.unwrap_or_else(|| mesh_io::default_unit_mm(&file));
                 match load_closed_mesh(&file, unit) {
-                    Ok(mesh) => (m.beads.iter().map(Marker::from_bead).collect(), Some(Arc::new(mesh)), Some(file)),
+                    Ok(mesh) => (
+                        m.beads.iter().map(Marker::from_bead).collect(),
+                        Some(Arc::new(mesh)),
+                        Some(file),
+                    ),
                     Err((message, help)) => {
-                        errors.push(loaded.locator.error(path.key("mesh").key("file"), message).with_help(help));
+                        errors.push(
+                            loaded
+                                .locator
+                                .error(path.key("mesh").key("file"), message)
+                                .with_help(help),
+                        );
                         continue;
                     }
                 }
             }
         };
-        models.push(PhantomModel { id: ph.id.clone(), kind: ph.kind(), markers, mesh, mesh_file });
+        models.push(PhantomModel {
+            id: ph.id.clone(),
+            kind: ph.kind(),
+            markers,
+            mesh,
+            mesh_file,
+        });
     }
-    if errors.is_empty() { Ok(models) } else { Err(errors) }
+    if errors.is_empty() {
+        Ok(models)
+    } else {
+        Err(errors)
+    }
 }
 
 /// Loads a mesh and insists that it is closed and outward-wound (inward winding is fixed).
@@ -104,11 +132,15 @@ fn load_closed_mesh(file: &std::path::Path, unit_mm: f64) -> Result<TriMesh, (St
     if !file.is_file() {
         return Err((
             format!("mesh file {} does not exist", file.display()),
-            "mesh paths are relative to the scenario file; check the spelling and the folder".into(),
+            "mesh paths are relative to the scenario file; check the spelling and the folder"
+                .into(),
         ));
     }
     let mut mesh = mesh_io::load_mesh(file, unit_mm).map_err(|e| {
-        (format!("cannot read mesh {}: {e}", file.display()), "use a closed triangle mesh as .glb, .gltf or .stl".into())
+        (
+            format!("cannot read mesh {}: {e}", file.display()),
+            "use a closed triangle mesh as .glb, .gltf or .stl".into(),
+        )
     })?;
     mesh.check_closed().map_err(|e| {
         (

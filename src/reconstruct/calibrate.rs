@@ -26,7 +26,11 @@ pub struct Beamline {
 impl Beamline {
     /// The detector frame with the given pixel counts `[W, H]` and pitch `[x, y]` (mm).
     pub fn frame(&self, pixels: [u32; 2], pitch: [f64; 2]) -> DetectorFrame {
-        DetectorFrame { pose: self.detector, pixels, pixel_pitch_mm: pitch }
+        DetectorFrame {
+            pose: self.detector,
+            pixels,
+            pixel_pitch_mm: pitch,
+        }
     }
 
     /// Continuous pixel coordinates of the central projection of `p`
@@ -85,10 +89,17 @@ fn normalisation(pts: &[Vec<f64>], dim: usize) -> Result<DMatrix<f64>, String> {
 /// SVD null vector, denormalised (`T_to⁻¹ · M_n · T_from`). The camera DLT (d = 3) and the
 /// homography of Selvik's method (d = 2) are both this. `degenerate` is the error when the null
 /// space is not one-dimensional.
-pub(crate) fn projective_dlt(from: &[Vec<f64>], to: &[DVec2], degenerate: &str) -> Result<DMatrix<f64>, String> {
+pub(crate) fn projective_dlt(
+    from: &[Vec<f64>],
+    to: &[DVec2],
+    degenerate: &str,
+) -> Result<DMatrix<f64>, String> {
     let (n, d) = (from.len(), from.first().map_or(0, Vec::len));
     let t_from = normalisation(from, d)?;
-    let t_to = normalisation(&to.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(), 2)?;
+    let t_to = normalisation(
+        &to.iter().map(|p| p.to_array().to_vec()).collect::<Vec<_>>(),
+        2,
+    )?;
     let cols = d + 1;
     // At least 3·cols rows, so that the thin SVD holds the null vector (zero rows change nothing).
     let mut a = DMatrix::<f64>::zeros((2 * n).max(3 * cols), 3 * cols);
@@ -128,7 +139,10 @@ pub(crate) fn projective_dlt(from: &[Vec<f64>], to: &[DVec2], degenerate: &str) 
 pub fn dlt(points: &[DVec3], pixels_uv: &[DVec2]) -> Result<[[f64; 4]; 3], String> {
     let n = points.len();
     if n != pixels_uv.len() {
-        return Err(format!("{n} points but {} pixel positions", pixels_uv.len()));
+        return Err(format!(
+            "{n} points but {} pixel positions",
+            pixels_uv.len()
+        ));
     }
     if n < 6 {
         return Err(format!("the DLT needs at least 6 points, got {n}"));
@@ -147,7 +161,11 @@ pub fn dlt(points: &[DVec3], pixels_uv: &[DVec2]) -> Result<[[f64; 4]; 3], Strin
     }
 
     let from: Vec<Vec<f64>> = points.iter().map(|p| p.to_array().to_vec()).collect();
-    let p = projective_dlt(&from, pixels_uv, "degenerate calibration configuration: the DLT solution is not unique")?;
+    let p = projective_dlt(
+        &from,
+        pixels_uv,
+        "degenerate calibration configuration: the DLT solution is not unique",
+    )?;
     let norm = p.norm();
     let mut out = [[0.0; 4]; 3];
     for (r, row) in out.iter_mut().enumerate() {
@@ -184,7 +202,11 @@ pub fn decompose(
         return Err("projection matrix has a singular 3×3 part".into());
     }
     // Sign: w = third row · (X, 1) must be positive for the beads (in front of the source).
-    let w_sum: f64 = points.iter().map(|x| a.row(2).dot(*x) + b.z).map(f64::signum).sum();
+    let w_sum: f64 = points
+        .iter()
+        .map(|x| a.row(2).dot(*x) + b.z)
+        .map(f64::signum)
+        .sum();
     if w_sum < 0.0 {
         a = -a;
         b = -b;
@@ -200,9 +222,17 @@ pub fn decompose(
         + eu * (pixels[0] as f64 / 2.0 * pitch[0])
         + ev * (pixels[1] as f64 / 2.0 * pitch[1]);
     if (source - origin).dot(n) <= 0.0 {
-        return Err("the detector normal r × c points away from the source: is the image mirrored?".into());
+        return Err(
+            "the detector normal r × c points away from the source: is the image mirrored?".into(),
+        );
     }
-    Ok(Beamline { source_mm: source, detector: Pose { position_mm: origin, rotation: DMat3::from_cols(eu, ev, n) } })
+    Ok(Beamline {
+        source_mm: source,
+        detector: Pose {
+            position_mm: origin,
+            rotation: DMat3::from_cols(eu, ev, n),
+        },
+    })
 }
 
 /// The orthonormal pair closest to unit vectors `a`, `b`, symmetric in both (the bisector frame).
@@ -236,7 +266,13 @@ fn apply(b: &Beamline, q: &[f64; 9]) -> Beamline {
 }
 
 /// Stacked residuals (projected − measured), 2 per point; `None` when a point does not project.
-fn residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv: &[DVec2]) -> Option<Vec<f64>> {
+fn residuals(
+    b: &Beamline,
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+    pts: &[DVec3],
+    uv: &[DVec2],
+) -> Option<Vec<f64>> {
     let frame = b.frame(pixels, pitch);
     let mut r = Vec::with_capacity(2 * pts.len());
     for (p, m) in pts.iter().zip(uv) {
@@ -248,10 +284,19 @@ fn residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv:
 }
 
 /// Per-point reprojection distances in pixels (infinite where a point does not project).
-pub(crate) fn point_residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], pts: &[DVec3], uv: &[DVec2]) -> Vec<f64> {
+pub(crate) fn point_residuals(
+    b: &Beamline,
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+    pts: &[DVec3],
+    uv: &[DVec2],
+) -> Vec<f64> {
     pts.iter()
         .zip(uv)
-        .map(|(p, m)| b.project(pixels, pitch, *p).map_or(f64::INFINITY, |q| (q - *m).length()))
+        .map(|(p, m)| {
+            b.project(pixels, pitch, *p)
+                .map_or(f64::INFINITY, |q| (q - *m).length())
+        })
         .collect()
 }
 
@@ -263,9 +308,17 @@ pub(crate) fn point_residuals(b: &Beamline, pixels: [u32; 2], pitch: [f64; 2], p
 /// Stops when the step changes no parameter by more than 1e-12 (mm or rad, relative to the
 /// scene), when the gradient vanishes, or after 50 iterations. Points that do not project make a
 /// step unacceptable. `dropped` is empty.
-pub fn refine(initial: &Beamline, pixels: [u32; 2], pitch: [f64; 2], points: &[DVec3], pixels_uv: &[DVec2]) -> Refined {
+pub fn refine(
+    initial: &Beamline,
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+    points: &[DVec3],
+    pixels_uv: &[DVec2],
+) -> Refined {
     const STEPS: [f64; 9] = [1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-8, 1e-8, 1e-8];
-    let cost = |b: &Beamline| residuals(b, pixels, pitch, points, pixels_uv).map(|r| r.iter().map(|x| x * x).sum::<f64>());
+    let cost = |b: &Beamline| {
+        residuals(b, pixels, pitch, points, pixels_uv).map(|r| r.iter().map(|x| x * x).sum::<f64>())
+    };
     let mut current = *initial;
     let mut f = cost(&current).unwrap_or(f64::INFINITY);
     let mut lambda = 1e-3;
@@ -273,7 +326,9 @@ pub fn refine(initial: &Beamline, pixels: [u32; 2], pitch: [f64; 2], points: &[D
     let m = 2 * points.len();
     while iterations < 50 && f.is_finite() {
         iterations += 1;
-        let Some(r0) = residuals(&current, pixels, pitch, points, pixels_uv) else { break };
+        let Some(r0) = residuals(&current, pixels, pitch, points, pixels_uv) else {
+            break;
+        };
         let mut jac = DMatrix::<f64>::zeros(m, 9);
         let mut ok = true;
         for k in 0..9 {
@@ -329,8 +384,15 @@ pub fn refine(initial: &Beamline, pixels: [u32; 2], pitch: [f64; 2], points: &[D
         }
     }
     let residuals_px = point_residuals(&current, pixels, pitch, points, pixels_uv);
-    let rms_px = (residuals_px.iter().map(|d| d * d).sum::<f64>() / residuals_px.len().max(1) as f64).sqrt();
-    Refined { beamline: current, rms_px, residuals_px, iterations, dropped: Vec::new() }
+    let rms_px =
+        (residuals_px.iter().map(|d| d * d).sum::<f64>() / residuals_px.len().max(1) as f64).sqrt();
+    Refined {
+        beamline: current,
+        rms_px,
+        residuals_px,
+        iterations,
+        dropped: Vec::new(),
+    }
 }
 
 /// Full calibration of one beamline: [`dlt`] → [`decompose`] → [`refine`], then one outlier pass.
@@ -339,7 +401,12 @@ pub fn refine(initial: &Beamline, pixels: [u32; 2], pitch: [f64; 2], points: &[D
 /// max(1.0 px, 5 × median distance) and refines again on the rest (starting from the first
 /// refinement). `dropped` lists the dropped indices; `residuals_px` covers every input point
 /// against the final beamline; `rms_px` is over the kept points.
-pub fn calibrate(points: &[DVec3], pixels_uv: &[DVec2], pixels: [u32; 2], pitch: [f64; 2]) -> Result<Refined, String> {
+pub fn calibrate(
+    points: &[DVec3],
+    pixels_uv: &[DVec2],
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+) -> Result<Refined, String> {
     let p = dlt(points, pixels_uv)?;
     let initial = decompose(&p, pixels, pitch, points)?;
     let first = refine(&initial, pixels, pitch, points, pixels_uv);
@@ -354,7 +421,10 @@ pub fn calibrate(points: &[DVec3], pixels_uv: &[DVec2], pixels: [u32; 2], pitch:
     }
     let keep: Vec<usize> = (0..points.len()).filter(|i| !dropped.contains(i)).collect();
     if keep.len() < 6 {
-        return Err(format!("only {} calibration points left after the outlier pass", keep.len()));
+        return Err(format!(
+            "only {} calibration points left after the outlier pass",
+            keep.len()
+        ));
     }
     let kp: Vec<DVec3> = keep.iter().map(|&i| points[i]).collect();
     let ku: Vec<DVec2> = keep.iter().map(|&i| pixels_uv[i]).collect();
@@ -408,7 +478,9 @@ pub(crate) mod tests {
     }
 
     fn project_all(b: &Beamline, pts: &[DVec3]) -> Vec<DVec2> {
-        pts.iter().map(|p| b.project(PIXELS, PITCH, *p).expect("bead projects")).collect()
+        pts.iter()
+            .map(|p| b.project(PIXELS, PITCH, *p).expect("bead projects"))
+            .collect()
     }
 
     /// Standard normal samples by Box–Muller over the crate's deterministic stream.
@@ -440,7 +512,11 @@ pub(crate) mod tests {
             assert!((b0.source_mm - truth.source_mm).length() < 1e-6);
             let fit = calibrate(&pts, &uv, PIXELS, PITCH).unwrap();
             let b = fit.beamline;
-            assert!((b.source_mm - truth.source_mm).length() < 1e-6, "{:?}", b.source_mm - truth.source_mm);
+            assert!(
+                (b.source_mm - truth.source_mm).length() < 1e-6,
+                "{:?}",
+                b.source_mm - truth.source_mm
+            );
             assert!((b.detector.position_mm - truth.detector.position_mm).length() < 1e-6);
             assert!(angle_deg(b.detector.rotation, truth.detector.rotation) < 1e-6);
             assert!(fit.rms_px < 1e-8 && fit.dropped.is_empty());
@@ -452,7 +528,13 @@ pub(crate) mod tests {
         // r × c = s and s towards the source, for both geometries.
         let pts = box_points();
         for truth in [beamline_1(), beamline_2()] {
-            let b = decompose(&dlt(&pts, &project_all(&truth, &pts)).unwrap(), PIXELS, PITCH, &pts).unwrap();
+            let b = decompose(
+                &dlt(&pts, &project_all(&truth, &pts)).unwrap(),
+                PIXELS,
+                PITCH,
+                &pts,
+            )
+            .unwrap();
             let r = b.detector.rotation;
             assert!((r.x_axis.cross(r.y_axis) - r.z_axis).length() < 1e-12);
             assert!((b.source_mm - b.detector.position_mm).dot(r.z_axis) > 1000.0);
@@ -460,7 +542,10 @@ pub(crate) mod tests {
         }
         // A mirrored image (u → W − u) cannot come from a right-handed detector: refused.
         let truth = beamline_1();
-        let mirrored: Vec<DVec2> = project_all(&truth, &pts).iter().map(|q| DVec2::new(1440.0 - q.x, q.y)).collect();
+        let mirrored: Vec<DVec2> = project_all(&truth, &pts)
+            .iter()
+            .map(|q| DVec2::new(1440.0 - q.x, q.y))
+            .collect();
         let p = dlt(&pts, &mirrored).unwrap();
         assert!(decompose(&p, PIXELS, PITCH, &pts).is_err());
     }
@@ -487,7 +572,8 @@ pub(crate) mod tests {
             let fit = calibrate(&pts, &uv, PIXELS, PITCH).unwrap();
             let rot = truth.detector.rotation;
             let e = rot.transpose() * (fit.beamline.source_mm - truth.source_mm);
-            let ed = rot.transpose() * (fit.beamline.detector.position_mm - truth.detector.position_mm);
+            let ed =
+                rot.transpose() * (fit.beamline.detector.position_mm - truth.detector.position_mm);
             let tilt = angle_deg(fit.beamline.detector.rotation, rot);
             eprintln!(
                 "{name}: rms {:.4} px (per coordinate {:.4}), source error r {:+.4} c {:+.4} s {:+.4} mm, \
@@ -505,7 +591,11 @@ pub(crate) mod tests {
                 fit.dropped
             );
             assert!(fit.dropped.is_empty());
-            assert!((fit.rms_px / 2f64.sqrt() - 0.1).abs() < 0.02, "rms {}", fit.rms_px);
+            assert!(
+                (fit.rms_px / 2f64.sqrt() - 0.1).abs() < 0.02,
+                "rms {}",
+                fit.rms_px
+            );
             assert!(e.x.abs() < 0.1 && e.y.abs() < 0.1, "{e:?}");
             assert!(e.z.abs() < 5.0, "{e:?}");
         }
@@ -531,6 +621,9 @@ pub(crate) mod tests {
         assert!(fit.rms_px < 0.2);
         assert!(bad.iter().all(|&i| fit.residuals_px[i] > 25.0));
         let e = truth.detector.rotation.transpose() * (fit.beamline.source_mm - truth.source_mm);
-        assert!(e.x.abs() < 0.1 && e.y.abs() < 0.1 && e.z.abs() < 5.0, "{e:?}");
+        assert!(
+            e.x.abs() < 0.1 && e.y.abs() < 0.1 && e.z.abs() < 5.0,
+            "{e:?}"
+        );
     }
 }

@@ -54,11 +54,17 @@ struct Affine {
 
 impl Affine {
     fn translation(t: DVec2) -> Affine {
-        Affine { a: [[1.0, 0.0], [0.0, 1.0]], t }
+        Affine {
+            a: [[1.0, 0.0], [0.0, 1.0]],
+            t,
+        }
     }
 
     fn apply(&self, x: DVec2) -> DVec2 {
-        DVec2::new(self.a[0][0] * x.x + self.a[0][1] * x.y, self.a[1][0] * x.x + self.a[1][1] * x.y) + self.t
+        DVec2::new(
+            self.a[0][0] * x.x + self.a[0][1] * x.y,
+            self.a[1][0] * x.x + self.a[1][1] * x.y,
+        ) + self.t
     }
 
     /// Least-squares fit of `to ≈ A·from + t` (needs ≥ 3 non-collinear pairs).
@@ -83,11 +89,19 @@ impl Affine {
         if det.abs() < 1e-9 * (sxx * syy).max(1e-300) {
             return None;
         }
-        let solve = |b: [f64; 2]| [(syy * b[0] - sxy * b[1]) / det, (sxx * b[1] - sxy * b[0]) / det];
+        let solve = |b: [f64; 2]| {
+            [
+                (syy * b[0] - sxy * b[1]) / det,
+                (sxx * b[1] - sxy * b[0]) / det,
+            ]
+        };
         let (r0, r1) = (solve(bx), solve(by));
         let a = [r0, r1];
         let aff = Affine { a, t: DVec2::ZERO };
-        Some(Affine { a, t: ct - aff.apply(cf) })
+        Some(Affine {
+            a,
+            t: ct - aff.apply(cf),
+        })
     }
 }
 
@@ -100,13 +114,27 @@ fn voted_offset(preds: &[Prediction], blobs: &[Blob], search_px: f64) -> DVec2 {
     const COVER_PX: f64 = 30.0;
     let bins = (2.0 * search_px / BIN_PX).ceil() as usize + 1;
     let mut votes = vec![0u32; bins * bins];
-    let candidates: Vec<Vec<usize>> =
-        preds.iter().map(|p| (0..blobs.len()).filter(|&b| bead_sized(&blobs[b], p.expected_area)).collect()).collect();
+    let candidates: Vec<Vec<usize>> = preds
+        .iter()
+        .map(|p| {
+            (0..blobs.len())
+                .filter(|&b| bead_sized(&blobs[b], p.expected_area))
+                .collect()
+        })
+        .collect();
     for (p, cands) in preds.iter().zip(&candidates) {
         for &b in cands {
             let d = blobs[b].centroid - p.uv;
-            let (x, y) = (((d.x + search_px) / BIN_PX) as i64, ((d.y + search_px) / BIN_PX) as i64);
-            if d.length() <= search_px && x >= 0 && y >= 0 && (x as usize) < bins && (y as usize) < bins {
+            let (x, y) = (
+                ((d.x + search_px) / BIN_PX) as i64,
+                ((d.y + search_px) / BIN_PX) as i64,
+            );
+            if d.length() <= search_px
+                && x >= 0
+                && y >= 0
+                && (x as usize) < bins
+                && (y as usize) < bins
+            {
                 votes[y as usize * bins + x as usize] += 1;
             }
         }
@@ -119,12 +147,17 @@ fn voted_offset(preds: &[Prediction], blobs: &[Blob], search_px: f64) -> DVec2 {
         preds
             .iter()
             .zip(&candidates)
-            .filter(|(p, cands)| cands.iter().any(|&b| (blobs[b].centroid - p.uv - offset).length() <= COVER_PX))
+            .filter(|(p, cands)| {
+                cands
+                    .iter()
+                    .any(|&b| (blobs[b].centroid - p.uv - offset).length() <= COVER_PX)
+            })
             .count()
     };
     let mut best = (0usize, f64::INFINITY, DVec2::ZERO);
     for k in order {
-        let offset = DVec2::new((k % bins) as f64 + 0.5, (k / bins) as f64 + 0.5) * BIN_PX - DVec2::splat(search_px);
+        let offset = DVec2::new((k % bins) as f64 + 0.5, (k / bins) as f64 + 0.5) * BIN_PX
+            - DVec2::splat(search_px);
         let score = coverage(offset);
         if score > best.0 || (score == best.0 && offset.length() < best.1) {
             best = (score, offset.length(), offset);
@@ -135,7 +168,13 @@ fn voted_offset(preds: &[Prediction], blobs: &[Blob], search_px: f64) -> DVec2 {
 
 /// For each prediction (through `map`), the nearest bead-sized blob within `radius_px`, if it is
 /// unambiguous: the second-nearest candidate must be at least `ratio` times farther.
-fn nearest_pairs(preds: &[Prediction], blobs: &[Blob], map: impl Fn(&Prediction) -> DVec2, radius_px: f64, ratio: f64) -> Vec<(usize, usize)> {
+fn nearest_pairs(
+    preds: &[Prediction],
+    blobs: &[Blob],
+    map: impl Fn(&Prediction) -> DVec2,
+    radius_px: f64,
+    ratio: f64,
+) -> Vec<(usize, usize)> {
     let mut out = Vec::new();
     for (k, p) in preds.iter().enumerate() {
         let at = map(p);
@@ -162,7 +201,12 @@ fn nearest_pairs(preds: &[Prediction], blobs: &[Blob], map: impl Fn(&Prediction)
 
 /// Unique matches within `radius_px` of the mapped predictions; a blob wanted by two beads, or a
 /// bead with two blobs in reach, is dropped.
-fn unique_matches(preds: &[Prediction], blobs: &[Blob], map: impl Fn(&Prediction) -> DVec2, radius_px: f64) -> Vec<Match> {
+fn unique_matches(
+    preds: &[Prediction],
+    blobs: &[Blob],
+    map: impl Fn(&Prediction) -> DVec2,
+    radius_px: f64,
+) -> Vec<Match> {
     let pairs = nearest_pairs(preds, blobs, map, radius_px, 2.0);
     let mut claims = vec![0u32; blobs.len()];
     for &(_, b) in &pairs {
@@ -171,7 +215,11 @@ fn unique_matches(preds: &[Prediction], blobs: &[Blob], map: impl Fn(&Prediction
     pairs
         .into_iter()
         .filter(|&(_, b)| claims[b] == 1)
-        .map(|(k, b)| Match { index: preds[k].index, blob: b, uv: blobs[b].centroid })
+        .map(|(k, b)| Match {
+            index: preds[k].index,
+            blob: b,
+            uv: blobs[b].centroid,
+        })
         .collect()
 }
 
@@ -201,7 +249,12 @@ pub fn match_beads(preds: &[Prediction], blobs: &[Blob], search_px: f64) -> Vec<
         }
         maps.push((g, map));
     }
-    let map_of = |p: &Prediction| maps.iter().find(|(g, _)| *g == p.group).map_or(shifted, |(_, m)| *m).apply(p.uv);
+    let map_of = |p: &Prediction| {
+        maps.iter()
+            .find(|(g, _)| *g == p.group)
+            .map_or(shifted, |(_, m)| *m)
+            .apply(p.uv)
+    };
     unique_matches(preds, blobs, map_of, 4.0)
 }
 
@@ -218,7 +271,10 @@ fn trimmed_affine(from: &[DVec2], to: &[DVec2]) -> Option<Affine> {
         let f: Vec<DVec2> = keep.iter().map(|&k| from[k]).collect();
         let t: Vec<DVec2> = keep.iter().map(|&k| to[k]).collect();
         let a = Affine::fit(&f, &t)?;
-        let mut res: Vec<f64> = keep.iter().map(|&k| (a.apply(from[k]) - to[k]).length()).collect();
+        let mut res: Vec<f64> = keep
+            .iter()
+            .map(|&k| (a.apply(from[k]) - to[k]).length())
+            .collect();
         fit = Some(a);
         let mut sorted = res.clone();
         sorted.sort_by(f64::total_cmp);
@@ -243,7 +299,11 @@ mod tests {
     use super::*;
 
     fn blob(u: f64, v: f64, area: usize) -> Blob {
-        Blob { centroid: DVec2::new(u, v), area, bbox: [0; 4] }
+        Blob {
+            centroid: DVec2::new(u, v),
+            area,
+            bbox: [0; 4],
+        }
     }
 
     #[test]
@@ -255,9 +315,16 @@ mod tests {
         for j in 0..9 {
             for i in 0..9 {
                 let p = DVec2::new(300.0 + 86.0 * i as f64, 300.0 + 86.0 * j as f64);
-                preds.push(Prediction { index: preds.len(), uv: p, expected_area: 15.0, group: 0 });
+                preds.push(Prediction {
+                    index: preds.len(),
+                    uv: p,
+                    expected_area: 15.0,
+                    group: 0,
+                });
                 let q = p - DVec2::splat(644.0);
-                let turned = DVec2::new(c * q.x - s * q.y, s * q.x + c * q.y) + DVec2::splat(644.0) + DVec2::new(70.0, -55.0);
+                let turned = DVec2::new(c * q.x - s * q.y, s * q.x + c * q.y)
+                    + DVec2::splat(644.0)
+                    + DVec2::new(70.0, -55.0);
                 blobs.push(blob(turned.x, turned.y, 15));
             }
         }
@@ -274,9 +341,24 @@ mod tests {
     #[test]
     fn two_predictions_in_one_blob_drop_both() {
         let preds = [
-            Prediction { index: 0, uv: DVec2::new(10.0, 10.0), expected_area: 15.0, group: 0 },
-            Prediction { index: 1, uv: DVec2::new(11.0, 10.0), expected_area: 15.0, group: 0 },
-            Prediction { index: 2, uv: DVec2::new(50.0, 50.0), expected_area: 15.0, group: 0 },
+            Prediction {
+                index: 0,
+                uv: DVec2::new(10.0, 10.0),
+                expected_area: 15.0,
+                group: 0,
+            },
+            Prediction {
+                index: 1,
+                uv: DVec2::new(11.0, 10.0),
+                expected_area: 15.0,
+                group: 0,
+            },
+            Prediction {
+                index: 2,
+                uv: DVec2::new(50.0, 50.0),
+                expected_area: 15.0,
+                group: 0,
+            },
         ];
         let blobs = [blob(10.5, 10.0, 15), blob(50.2, 49.9, 14)];
         let m = match_near(&preds, &blobs, 3.0);

@@ -39,7 +39,12 @@ pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
             su += i as f64 + 0.5;
             sv += j as f64 + 0.5;
             n += 1;
-            bbox = [bbox[0].min(i as u32), bbox[1].min(j as u32), bbox[2].max(i as u32), bbox[3].max(j as u32)];
+            bbox = [
+                bbox[0].min(i as u32),
+                bbox[1].min(j as u32),
+                bbox[2].max(i as u32),
+                bbox[3].max(j as u32),
+            ];
             for dj in -1i64..=1 {
                 for di in -1i64..=1 {
                     let (x, y) = (i as i64 + di, j as i64 + dj);
@@ -54,7 +59,11 @@ pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
                 }
             }
         }
-        out.push(Blob { centroid: DVec2::new(su / n as f64, sv / n as f64), area: n, bbox });
+        out.push(Blob {
+            centroid: DVec2::new(su / n as f64, sv / n as f64),
+            area: n,
+            bbox,
+        });
     }
     out
 }

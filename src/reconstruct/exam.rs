@@ -53,27 +53,41 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
     let nominal = expand_run(&nominal_scenario, &models, 0, 0.0, 0);
     let mut beads = BTreeMap::new();
     for p in &loaded.scenario.phantoms {
-        let name = if p.mesh.is_some() { format!("{}-beads.csv", p.id) } else { format!("{}.csv", p.id) };
+        let name = if p.mesh.is_some() {
+            format!("{}-beads.csv", p.id)
+        } else {
+            format!("{}.csv", p.id)
+        };
         let file = out.join("phantoms").join(name);
         if file.exists() {
             beads.insert(p.id.clone(), read_bead_table(&file)?);
         }
     }
-    Ok(Setup { scenario: loaded.scenario, nominal, beads })
+    Ok(Setup {
+        scenario: loaded.scenario,
+        nominal,
+        beads,
+    })
 }
 
 /// Reads a bead table: `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.
 pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
-    let mut reader = csv::Reader::from_path(file).map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+    let mut reader = csv::Reader::from_path(file)
+        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
     let mut out = Vec::new();
     for (k, row) in reader.records().enumerate() {
         let bad = |what: String| {
-            let mut d = Diagnostic::file_error(file, what).with_help("columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm");
+            let mut d = Diagnostic::file_error(file, what)
+                .with_help("columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm");
             d.line_col = Some((k + 2, 1));
             vec![d]
         };
         let row = row.map_err(|e| bad(format!("malformed row: {e}")))?;
-        let num = |i: usize| row.get(i).and_then(|v| v.parse::<f64>().ok()).ok_or_else(|| bad(format!("column {} is not a number", i + 1)));
+        let num = |i: usize| {
+            row.get(i)
+                .and_then(|v| v.parse::<f64>().ok())
+                .ok_or_else(|| bad(format!("column {} is not a number", i + 1)))
+        };
         out.push(TableBead {
             id: row.get(0).unwrap_or("").to_string(),
             plate: row.get(1).unwrap_or("").to_string(),
@@ -88,7 +102,12 @@ pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
 pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Vec<Diagnostic>> {
     let dir = out.join("runs");
     let mut v: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
-        .map_err(|e| vec![Diagnostic::file_error(&dir, format!("cannot list the run folders: {e}"))])?
+        .map_err(|e| {
+            vec![Diagnostic::file_error(
+                &dir,
+                format!("cannot list the run folders: {e}"),
+            )]
+        })?
         .flatten()
         .filter(|e| e.path().is_dir())
         .map(|e| (e.file_name().to_string_lossy().into_owned(), e.path()))
@@ -101,17 +120,30 @@ pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Vec<Diagnostic>
 pub fn read_image(dir: &Path, stem: &str) -> Result<(u32, u32, Vec<u16>), String> {
     let tiff_path = dir.join(format!("{stem}.tiff"));
     if tiff_path.exists() {
-        let file = std::fs::File::open(&tiff_path).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
-        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file)).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
+        let file =
+            std::fs::File::open(&tiff_path).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
+        let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
+            .map_err(|e| format!("{}: {e}", tiff_path.display()))?;
         let (w, h) = dec.dimensions().map_err(|e| e.to_string())?;
-        return match dec.read_image().map_err(|e| format!("{}: {e}", tiff_path.display()))? {
+        return match dec
+            .read_image()
+            .map_err(|e| format!("{}: {e}", tiff_path.display()))?
+        {
             tiff::decoder::DecodingResult::U16(v) => Ok((w, h, v)),
-            _ => Err(format!("{} is not a 16-bit grayscale TIFF", tiff_path.display())),
+            _ => Err(format!(
+                "{} is not a 16-bit grayscale TIFF",
+                tiff_path.display()
+            )),
         };
     }
     let exr_path = dir.join(format!("{stem}.exr"));
-    let image = exr::prelude::read_first_flat_layer_from_file(&exr_path).map_err(|e| format!("{}: {e}", exr_path.display()))?;
+    let image = exr::prelude::read_first_flat_layer_from_file(&exr_path)
+        .map_err(|e| format!("{}: {e}", exr_path.display()))?;
     let size = image.layer_data.size;
-    let values: Vec<u16> = image.layer_data.channel_data.list[0].sample_data.values_as_f32().map(|v| v as u16).collect();
+    let values: Vec<u16> = image.layer_data.channel_data.list[0]
+        .sample_data
+        .values_as_f32()
+        .map(|v| v as u16)
+        .collect();
     Ok((size.0 as u32, size.1 as u32, values))
 }

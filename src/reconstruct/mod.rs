@@ -8,9 +8,9 @@ pub mod correspond;
 pub mod detect;
 pub mod exam;
 pub mod model;
+pub mod pipeline;
 pub mod rigid;
 pub mod selvik;
-pub mod pipeline;
 
 use std::path::Path;
 
@@ -60,11 +60,19 @@ pub fn reconstruct(out: &Path, method: Method) -> Result<Summary, Vec<Diagnostic
             let r = pipeline::reconstruct_run(&setup, id, dir, method).and_then(|m| {
                 let mut bytes = serde_json::to_vec_pretty(&m).map_err(|e| e.to_string())?;
                 bytes.push(b'\n');
-                write_atomic(&dir.join("measured.json"), &bytes).map(|_| ()).map_err(|e| e.to_string())
+                write_atomic(&dir.join("measured.json"), &bytes)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
             });
             (id.clone(), r)
         })
         .collect();
-    let failed: Vec<(String, String)> = results.iter().filter_map(|(id, r)| r.as_ref().err().map(|e| (id.clone(), e.clone()))).collect();
-    Ok(Summary { runs: results.len() - failed.len(), failed })
+    let failed: Vec<(String, String)> = results
+        .iter()
+        .filter_map(|(id, r)| r.as_ref().err().map(|e| (id.clone(), e.clone())))
+        .collect();
+    Ok(Summary {
+        runs: results.len() - failed.len(),
+        failed,
+    })
 }

@@ -60,7 +60,10 @@ fn candidates(views: &[View]) -> Vec<Candidate> {
                     let rb = ray_through_pixel(vb.beamline, vb.pixels, vb.pitch, ub);
                     let (p, err) = triangulate(&[ra, rb]);
                     if err.is_finite() && err <= CROSSING_LIMIT_MM {
-                        out.push(Candidate { position: p, crossing_mm: err });
+                        out.push(Candidate {
+                            position: p,
+                            crossing_mm: err,
+                        });
                     }
                 }
             }
@@ -72,11 +75,17 @@ fn candidates(views: &[View]) -> Vec<Candidate> {
 /// Finds the model's pose from `views` and its bead table `model` (model frame, mm).
 pub fn find_model(views: &[View], model: &[DVec3]) -> Result<ModelFit, String> {
     if model.len() < 3 {
-        return Err(format!("the model has {} bead(s); marker-based RSA needs 3", model.len()));
+        return Err(format!(
+            "the model has {} bead(s); marker-based RSA needs 3",
+            model.len()
+        ));
     }
     let cands = candidates(views);
     if cands.len() < 3 {
-        return Err(format!("only {} bead(s) seen in two views; marker-based RSA needs 3", cands.len()));
+        return Err(format!(
+            "only {} bead(s) seen in two views; marker-based RSA needs 3",
+            cands.len()
+        ));
     }
     let close = |a: DVec3, b: DVec3, d: f64| ((a - b).length() - d).abs() <= DISTANCE_TOL_MM;
     // The best assignment so far: (inliers, rms, pairs of (model index, candidate index)).
@@ -86,26 +95,46 @@ pub fn find_model(views: &[View], model: &[DVec3]) -> Result<ModelFit, String> {
     for i in 0..model.len() {
         for j in i + 1..model.len() {
             for k in j + 1..model.len() {
-                let (dij, dik, djk) = ((model[i] - model[j]).length(), (model[i] - model[k]).length(), (model[j] - model[k]).length());
+                let (dij, dik, djk) = (
+                    (model[i] - model[j]).length(),
+                    (model[i] - model[k]).length(),
+                    (model[j] - model[k]).length(),
+                );
                 for p in 0..n {
                     for q in 0..n {
                         if q == p || !close(cands[p].position, cands[q].position, dij) {
                             continue;
                         }
                         for r in 0..n {
-                            if r == p || r == q || !close(cands[p].position, cands[r].position, dik) || !close(cands[q].position, cands[r].position, djk) {
+                            if r == p
+                                || r == q
+                                || !close(cands[p].position, cands[r].position, dik)
+                                || !close(cands[q].position, cands[r].position, djk)
+                            {
                                 continue;
                             }
-                            let Ok(fit) = fit_rigid(&[model[i], model[j], model[k]], &[cands[p].position, cands[q].position, cands[r].position]) else {
+                            let Ok(fit) = fit_rigid(
+                                &[model[i], model[j], model[k]],
+                                &[cands[p].position, cands[q].position, cands[r].position],
+                            ) else {
                                 continue;
                             };
                             let pairs = assign(&fit, model, &cands);
-                            let rms = (pairs.iter().map(|&(m, c)| (fit.pose.to_world(model[m]) - cands[c].position).length_squared()).sum::<f64>()
+                            let rms = (pairs
+                                .iter()
+                                .map(|&(m, c)| {
+                                    (fit.pose.to_world(model[m]) - cands[c].position)
+                                        .length_squared()
+                                })
+                                .sum::<f64>()
                                 / pairs.len() as f64)
                                 .sqrt();
                             let better = match &best {
                                 None => true,
-                                Some((count, best_rms, _)) => pairs.len() > *count || (pairs.len() == *count && rms < *best_rms),
+                                Some((count, best_rms, _)) => {
+                                    pairs.len() > *count
+                                        || (pairs.len() == *count && rms < *best_rms)
+                                }
                             };
                             if better {
                                 best = Some((pairs.len(), rms, pairs));
@@ -117,10 +146,21 @@ pub fn find_model(views: &[View], model: &[DVec3]) -> Result<ModelFit, String> {
         }
     }
     let (_, _, pairs) = best.ok_or("no three candidate beads match the bead table's distances")?;
-    let (m, w): (Vec<DVec3>, Vec<DVec3>) = pairs.iter().map(|&(m, c)| (model[m], cands[c].position)).unzip();
+    let (m, w): (Vec<DVec3>, Vec<DVec3>) = pairs
+        .iter()
+        .map(|&(m, c)| (model[m], cands[c].position))
+        .unzip();
     let fit = fit_rigid(&m, &w)?;
-    let crossing = pairs.iter().map(|&(_, c)| cands[c].crossing_mm).sum::<f64>() / pairs.len() as f64;
-    Ok(ModelFit { fit, beads_used: pairs.len(), crossing_line_error_mm: crossing })
+    let crossing = pairs
+        .iter()
+        .map(|&(_, c)| cands[c].crossing_mm)
+        .sum::<f64>()
+        / pairs.len() as f64;
+    Ok(ModelFit {
+        fit,
+        beads_used: pairs.len(),
+        crossing_line_error_mm: crossing,
+    })
 }
 
 /// For each model bead, the nearest candidate within 1 mm of where `fit` puts it (each
@@ -152,8 +192,14 @@ mod tests {
     fn finds_a_model_far_from_any_nominal_pose_among_distractors() {
         let pixels = [1440, 1440];
         let pitch = [430.0 / 1440.0; 2];
-        let b1 = Beamline { source_mm: DVec3::new(5.0, -3.0, 1300.0), detector: Pose::from_position_euler_deg([2.0, 1.0, -500.0], [1.0, -1.0, 2.0]) };
-        let b2 = Beamline { source_mm: DVec3::new(1300.0, 4.0, -6.0), detector: Pose::from_position_euler_deg([-500.0, 2.0, 3.0], [0.5, 90.0, -1.0]) };
+        let b1 = Beamline {
+            source_mm: DVec3::new(5.0, -3.0, 1300.0),
+            detector: Pose::from_position_euler_deg([2.0, 1.0, -500.0], [1.0, -1.0, 2.0]),
+        };
+        let b2 = Beamline {
+            source_mm: DVec3::new(1300.0, 4.0, -6.0),
+            detector: Pose::from_position_euler_deg([-500.0, 2.0, 3.0], [0.5, 90.0, -1.0]),
+        };
         let model = [
             DVec3::new(6.0, 34.0, 12.0),
             DVec3::new(0.0, 36.0, 2.0),
@@ -164,12 +210,22 @@ mod tests {
         ];
         let pose = Pose::from_position_euler_deg([7.0, -4.0, 9.0], [9.0, -10.0, 8.0]);
         let view = |b: &'static Beamline, hide: usize| -> View<'static> {
-            let mut blobs: Vec<DVec2> =
-                model.iter().enumerate().filter(|(k, _)| *k != hide).map(|(_, p)| b.project(pixels, pitch, pose.to_world(*p)).unwrap()).collect();
+            let mut blobs: Vec<DVec2> = model
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k != hide)
+                .map(|(_, p)| b.project(pixels, pitch, pose.to_world(*p)).unwrap())
+                .collect();
             blobs.push(DVec2::new(100.0, 200.0)); // a stray blob
-            View { beamline: b, pixels, pitch, blobs }
+            View {
+                beamline: b,
+                pixels,
+                pitch,
+                blobs,
+            }
         };
-        let (b1, b2): (&'static Beamline, &'static Beamline) = (Box::leak(Box::new(b1)), Box::leak(Box::new(b2)));
+        let (b1, b2): (&'static Beamline, &'static Beamline) =
+            (Box::leak(Box::new(b1)), Box::leak(Box::new(b2)));
         // Bead 5 hidden in view 1, bead 0 hidden in view 2: four beads seen twice.
         let fit = find_model(&[view(b1, 5), view(b2, 0)], &model).unwrap();
         assert_eq!(fit.beads_used, 4);

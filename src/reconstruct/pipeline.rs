@@ -15,8 +15,8 @@ use super::model::View;
 use super::selvik::calibrate_selvik;
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, rotation_rows, rotation_xyz_deg};
-use crate::scenario::PlateRole;
 use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
+use crate::scenario::PlateRole;
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
 const SEARCH_PX: f64 = 150.0;
@@ -38,7 +38,10 @@ pub fn software(method: Method) -> String {
         Method::Dlt => "DLT + LM",
         Method::Selvik => "Selvik: fiducial homography + control focus",
     };
-    format!("rsasim reconstruct {} ({calibration}, marker-based)", env!("CARGO_PKG_VERSION"))
+    format!(
+        "rsasim reconstruct {} ({calibration}, marker-based)",
+        env!("CARGO_PKG_VERSION")
+    )
 }
 
 /// What the calibration knows of each plate of the box: its role and whether it faces the beamline.
@@ -51,30 +54,80 @@ struct PlateUse {
 /// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
 /// the result, as a real software would report a failure.
 /// Every beamline is calibrated by `method`.
-pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) -> Result<Measured, String> {
+pub fn reconstruct_run(
+    setup: &Setup,
+    run_id: &str,
+    dir: &Path,
+    method: Method,
+) -> Result<Measured, String> {
     let nominal = &setup.nominal;
-    let box_id = setup.scenario.phantoms.iter().find(|p| p.calibration_box.is_some()).map(|p| p.id.clone());
-    let calibration_exposure = box_id.as_ref().and_then(|b| setup.scenario.exposures.iter().find(|e| e.phantoms.contains(b)));
-    let mut measured = Measured { format: MEASURED_FORMAT.into(), run: run_id.into(), software: software(method), sources: vec![], detectors: vec![], phantoms: vec![] };
-    let (Some(box_id), Some(exposure)) = (box_id, calibration_exposure) else {
-        return Err("the scenario has no calibration box in any exposure: the scene cannot be calibrated".into());
+    let box_id = setup
+        .scenario
+        .phantoms
+        .iter()
+        .find(|p| p.calibration_box.is_some())
+        .map(|p| p.id.clone());
+    let calibration_exposure = box_id.as_ref().and_then(|b| {
+        setup
+            .scenario
+            .exposures
+            .iter()
+            .find(|e| e.phantoms.contains(b))
+    });
+    let mut measured = Measured {
+        format: MEASURED_FORMAT.into(),
+        run: run_id.into(),
+        software: software(method),
+        sources: vec![],
+        detectors: vec![],
+        phantoms: vec![],
     };
-    let box_beads = setup.beads.get(&box_id).ok_or("no bead table for the calibration box in phantoms/")?;
+    let (Some(box_id), Some(exposure)) = (box_id, calibration_exposure) else {
+        return Err(
+            "the scenario has no calibration box in any exposure: the scene cannot be calibrated"
+                .into(),
+        );
+    };
+    let box_beads = setup
+        .beads
+        .get(&box_id)
+        .ok_or("no bead table for the calibration box in phantoms/")?;
     let plates: Vec<&str> = {
         let mut p: Vec<&str> = box_beads.iter().map(|b| b.plate.as_str()).collect();
         p.dedup();
         p
     };
     // Each plate's normal in the box frame, from the nominal set-up (plates of the first box).
-    let box_plates = || setup.scenario.phantoms.iter().filter_map(|p| p.calibration_box.as_ref()).flat_map(|b| &b.plates);
-    let plate_roles: Vec<Option<PlateRole>> = plates.iter().map(|id| box_plates().find(|p| p.id == *id).map(|p| p.role)).collect();
+    let box_plates = || {
+        setup
+            .scenario
+            .phantoms
+            .iter()
+            .filter_map(|p| p.calibration_box.as_ref())
+            .flat_map(|b| &b.plates)
+    };
+    let plate_roles: Vec<Option<PlateRole>> = plates
+        .iter()
+        .map(|id| box_plates().find(|p| p.id == *id).map(|p| p.role))
+        .collect();
     let plate_normals: Vec<Option<DVec3>> = plates
         .iter()
         .map(|id| {
-            setup.scenario.phantoms.iter().filter_map(|p| p.calibration_box.as_ref()).flat_map(|b| &b.plates).find(|p| p.id == *id).map(|p| {
-                let box_rotation = nominal.phantoms.iter().find(|x| x.kind == "calibration_box").map_or(glam::DMat3::IDENTITY, |x| x.rotation);
-                box_rotation * rotation_xyz_deg(p.rotation_deg) * DVec3::Z
-            })
+            setup
+                .scenario
+                .phantoms
+                .iter()
+                .filter_map(|p| p.calibration_box.as_ref())
+                .flat_map(|b| &b.plates)
+                .find(|p| p.id == *id)
+                .map(|p| {
+                    let box_rotation = nominal
+                        .phantoms
+                        .iter()
+                        .find(|x| x.kind == "calibration_box")
+                        .map_or(glam::DMat3::IDENTITY, |x| x.rotation);
+                    box_rotation * rotation_xyz_deg(p.rotation_deg) * DVec3::Z
+                })
         })
         .collect();
 
@@ -96,12 +149,18 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) 
         // projects into dense lines of beads where a nominal prediction cannot tell neighbours
         // apart. Its beads join once a calibration predicts them to a fraction of a pixel.
         let s_axis = det.rotation.z_axis;
-        let facing: Vec<Prediction> =
-            preds.iter().filter(|p| plate_normals[p.group].is_none_or(|n| n.dot(s_axis).abs() > 0.7)).cloned().collect();
+        let facing: Vec<Prediction> = preds
+            .iter()
+            .filter(|p| plate_normals[p.group].is_none_or(|n| n.dot(s_axis).abs() > 0.7))
+            .cloned()
+            .collect();
         let uses: Vec<PlateUse> = plate_normals
             .iter()
             .zip(&plate_roles)
-            .map(|(n, role)| PlateUse { role: *role, facing: n.is_none_or(|n| n.dot(s_axis).abs() > 0.7) })
+            .map(|(n, role)| PlateUse {
+                role: *role,
+                facing: n.is_none_or(|n| n.dot(s_axis).abs() > 0.7),
+            })
             .collect();
         let fit = |matches: &[Match]| fit_beamline(method, matches, box_beads, &plates, &uses, det);
         match calibrate_beamline(&facing, &preds, &found, box_beads, det, fit) {
@@ -112,9 +171,17 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) 
         }
     }
     for (id, (c, det)) in &beamlines {
-        let quality = Some(FitQuality { beads_used: Some(c.beads), reprojection_rms_px: Some(c.rms_px), ..Default::default() });
+        let quality = Some(FitQuality {
+            beads_used: Some(c.beads),
+            reprojection_rms_px: Some(c.rms_px),
+            ..Default::default()
+        });
         if !measured.sources.iter().any(|s| s.id == det.source) {
-            measured.sources.push(MeasuredPoint { id: det.source.clone(), position_mm: c.beamline.source_mm.to_array(), quality: quality.clone() });
+            measured.sources.push(MeasuredPoint {
+                id: det.source.clone(),
+                position_mm: c.beamline.source_mm.to_array(),
+                quality: quality.clone(),
+            });
         }
         measured.detectors.push(MeasuredPose {
             id: id.clone(),
@@ -129,13 +196,21 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) 
         if phantom.kind == "calibration_box" {
             continue;
         }
-        let (Some(beads), Some(exposure)) =
-            (setup.beads.get(&phantom.id), setup.scenario.exposures.iter().find(|e| e.phantoms.contains(&phantom.id)))
-        else {
+        let (Some(beads), Some(exposure)) = (
+            setup.beads.get(&phantom.id),
+            setup
+                .scenario
+                .exposures
+                .iter()
+                .find(|e| e.phantoms.contains(&phantom.id)),
+        ) else {
             continue;
         };
         match find_model(dir, &exposure.id, &beamlines, beads) {
-            Ok(pose) => measured.phantoms.push(MeasuredPose { id: phantom.id.clone(), ..pose }),
+            Ok(pose) => measured.phantoms.push(MeasuredPose {
+                id: phantom.id.clone(),
+                ..pose
+            }),
             Err(e) => eprintln!("{run_id}: model {}: not found: {e}", phantom.id),
         }
     }
@@ -143,12 +218,24 @@ pub fn reconstruct_run(setup: &Setup, run_id: &str, dir: &Path, method: Method) 
 }
 
 /// The predicted blob of a bead: projected centre and expected area.
-fn predict(frame: &DetectorFrame, source: DVec3, p: DVec3, diameter_mm: f64, index: usize, group: usize) -> Option<Prediction> {
+fn predict(
+    frame: &DetectorFrame,
+    source: DVec3,
+    p: DVec3,
+    diameter_mm: f64,
+    index: usize,
+    group: usize,
+) -> Option<Prediction> {
     let uv = frame.project(source, p)?;
     let s = frame.pose.to_local(source);
     let z = frame.pose.to_local(p).z;
     let radius_px = diameter_mm / 2.0 * s.z / (s.z - z) / frame.pixel_pitch_mm[0];
-    frame.contains_pixel(uv).then_some(Prediction { index, uv, expected_area: std::f64::consts::PI * radius_px * radius_px, group })
+    frame.contains_pixel(uv).then_some(Prediction {
+        index,
+        uv,
+        expected_area: std::f64::consts::PI * radius_px * radius_px,
+        group,
+    })
 }
 
 /// One calibration of a beamline from matched box beads by `method`: the fit and the number of
@@ -180,11 +267,18 @@ fn fit_beamline(
             let fiducial_plate = (0..plates.len())
                 .filter(|&g| uses[g].facing && uses[g].role == Some(PlateRole::Fiducial))
                 .max_by_key(|&g| of_group(g).count())
-                .ok_or("Selvik's method needs a fiducial plate facing the beamline; the box has none")?;
-            let (f, fu): (Vec<DVec3>, Vec<DVec2>) = of_group(fiducial_plate).map(|m| (beads[m.index].position_mm, m.uv)).unzip();
+                .ok_or(
+                    "Selvik's method needs a fiducial plate facing the beamline; the box has none",
+                )?;
+            let (f, fu): (Vec<DVec3>, Vec<DVec2>) = of_group(fiducial_plate)
+                .map(|m| (beads[m.index].position_mm, m.uv))
+                .unzip();
             let (c, cu): (Vec<DVec3>, Vec<DVec2>) = matches
                 .iter()
-                .filter(|m| group(m).is_some_and(|g| uses[g].facing && uses[g].role == Some(PlateRole::Control)))
+                .filter(|m| {
+                    group(m)
+                        .is_some_and(|g| uses[g].facing && uses[g].role == Some(PlateRole::Control))
+                })
                 .map(|m| (beads[m.index].position_mm, m.uv))
                 .unzip();
             let refined = calibrate_selvik((&f, &fu), (&c, &cu), pixels, pitch)?;
@@ -211,11 +305,29 @@ fn calibrate_beamline(
         let frame = refined.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let repredicted: Vec<Prediction> = preds
             .iter()
-            .filter_map(|p| predict(&frame, refined.beamline.source_mm, beads[p.index].position_mm, beads[p.index].diameter_mm, p.index, p.group))
+            .filter_map(|p| {
+                predict(
+                    &frame,
+                    refined.beamline.source_mm,
+                    beads[p.index].position_mm,
+                    beads[p.index].diameter_mm,
+                    p.index,
+                    p.group,
+                )
+            })
             .collect();
-        result = Some(Calibrated { beamline: refined.beamline, rms_px: refined.rms_px, beads: beads_used });
+        result = Some(Calibrated {
+            beamline: refined.beamline,
+            rms_px: refined.rms_px,
+            beads: beads_used,
+        });
         let next = match_near(&repredicted, found, 2.5);
-        if next.len() == matches.len() && next.iter().zip(&matches).all(|(a, b)| a.index == b.index && a.blob == b.blob) {
+        if next.len() == matches.len()
+            && next
+                .iter()
+                .zip(&matches)
+                .all(|(a, b)| a.index == b.index && a.blob == b.blob)
+        {
             break;
         }
         matches = next;
@@ -243,10 +355,17 @@ fn find_model(
         let expected = std::f64::consts::PI * radius_px * radius_px;
         let candidates = blobs(&px, w as usize, det.i_max())
             .into_iter()
-            .filter(|b| (b.area as f64) >= 0.45 * expected && (b.area as f64) <= 1.6 * expected + 2.0)
+            .filter(|b| {
+                (b.area as f64) >= 0.45 * expected && (b.area as f64) <= 1.6 * expected + 2.0
+            })
             .map(|b| b.centroid)
             .collect();
-        views.push(View { beamline: &c.beamline, pixels: det.pixels, pitch: det.pixel_pitch_mm, blobs: candidates });
+        views.push(View {
+            beamline: &c.beamline,
+            pixels: det.pixels,
+            pitch: det.pixel_pitch_mm,
+            blobs: candidates,
+        });
     }
     let local: Vec<DVec3> = beads.iter().map(|b| b.position_mm).collect();
     let found = super::model::find_model(&views, &local)?;

@@ -45,10 +45,18 @@ pub fn triangulate(rays: &[(DVec3, DVec3)]) -> (DVec3, f64) {
 
 /// The ray from the beamline's source through continuous pixel `uv`: (origin = source, unit
 /// direction towards the pixel's world position on the detector plane).
-pub fn ray_through_pixel(beamline: &Beamline, pixels: [u32; 2], pitch: [f64; 2], uv: DVec2) -> (DVec3, DVec3) {
+pub fn ray_through_pixel(
+    beamline: &Beamline,
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+    uv: DVec2,
+) -> (DVec3, DVec3) {
     let frame = beamline.frame(pixels, pitch);
     let on_detector = frame.pose.to_world(frame.pixel_local(uv.x, uv.y));
-    (beamline.source_mm, (on_detector - beamline.source_mm).normalize())
+    (
+        beamline.source_mm,
+        (on_detector - beamline.source_mm).normalize(),
+    )
 }
 
 /// A rigid-body fit of a marker model to measured marker positions.
@@ -65,7 +73,10 @@ pub struct RigidFit {
 /// Centred 3×n coordinates' scatter matrix Σ (xᵢ − x̄)(yᵢ − ȳ)ᵀ and the centroids.
 fn cross_scatter(x: &[DVec3], y: &[DVec3]) -> (Matrix3<f64>, DVec3, DVec3) {
     let n = x.len() as f64;
-    let (cx, cy) = (x.iter().copied().sum::<DVec3>() / n, y.iter().copied().sum::<DVec3>() / n);
+    let (cx, cy) = (
+        x.iter().copied().sum::<DVec3>() / n,
+        y.iter().copied().sum::<DVec3>() / n,
+    );
     let mut h = Matrix3::zeros();
     for (a, b) in x.iter().zip(y) {
         let (a, b) = (*a - cx, *b - cy);
@@ -78,7 +89,11 @@ fn cross_scatter(x: &[DVec3], y: &[DVec3]) -> (Matrix3<f64>, DVec3, DVec3) {
 fn configuration_singular_values(markers: &[DVec3]) -> [f64; 3] {
     let (h, _, _) = cross_scatter(markers, markers);
     // AAᵀ = h; its eigenvalues are σ².
-    let mut ev: Vec<f64> = h.symmetric_eigenvalues().iter().map(|e| e.max(0.0).sqrt()).collect();
+    let mut ev: Vec<f64> = h
+        .symmetric_eigenvalues()
+        .iter()
+        .map(|e| e.max(0.0).sqrt())
+        .collect();
     ev.sort_by(|a, b| b.total_cmp(a));
     [ev[0], ev[1], ev[2]]
 }
@@ -119,10 +134,17 @@ pub fn condition_number(markers: &[DVec3]) -> f64 {
 /// guard against a reflection), t = ȳ − R x̄. Needs ≥ 3 corresponding, non-collinear markers.
 pub fn fit_rigid(model: &[DVec3], measured: &[DVec3]) -> Result<RigidFit, String> {
     if model.len() != measured.len() {
-        return Err(format!("{} model markers but {} measured", model.len(), measured.len()));
+        return Err(format!(
+            "{} model markers but {} measured",
+            model.len(),
+            measured.len()
+        ));
     }
     if model.len() < 3 {
-        return Err(format!("a rigid fit needs at least 3 markers, got {}", model.len()));
+        return Err(format!(
+            "a rigid fit needs at least 3 markers, got {}",
+            model.len()
+        ));
     }
     let [s1, s2, _] = configuration_singular_values(model);
     if s2.is_nan() || s2 <= 1e-9 * s1 {
@@ -139,16 +161,27 @@ pub fn fit_rigid(model: &[DVec3], measured: &[DVec3]) -> Result<RigidFit, String
         DVec3::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
         DVec3::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
     );
-    let pose = Pose { position_mm: cy - rotation * cx, rotation };
-    let mean_error_mm =
-        model.iter().zip(measured).map(|(x, y)| (pose.to_world(*x) - *y).length()).sum::<f64>() / model.len() as f64;
-    Ok(RigidFit { pose, mean_error_mm, condition_number: condition_number(model) })
+    let pose = Pose {
+        position_mm: cy - rotation * cx,
+        rotation,
+    };
+    let mean_error_mm = model
+        .iter()
+        .zip(measured)
+        .map(|(x, y)| (pose.to_world(*x) - *y).length())
+        .sum::<f64>()
+        / model.len() as f64;
+    Ok(RigidFit {
+        pose,
+        mean_error_mm,
+        condition_number: condition_number(model),
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reconstruct::calibrate::tests::{PIXELS, PITCH, beamline_1, beamline_2, gaussians};
+    use crate::reconstruct::calibrate::tests::{PITCH, PIXELS, beamline_1, beamline_2, gaussians};
 
     fn markers() -> Vec<DVec3> {
         vec![
@@ -164,13 +197,20 @@ mod tests {
     #[test]
     fn triangulation_of_exact_and_skew_rays() {
         let p = DVec3::new(10.0, -20.0, 30.0);
-        let (o1, o2, o3) = (DVec3::new(0.0, 0.0, 1300.0), DVec3::new(1300.0, 0.0, 0.0), DVec3::new(0.0, 900.0, 900.0));
+        let (o1, o2, o3) = (
+            DVec3::new(0.0, 0.0, 1300.0),
+            DVec3::new(1300.0, 0.0, 0.0),
+            DVec3::new(0.0, 900.0, 900.0),
+        );
         let (x, e) = triangulate(&[(o1, p - o1), (o2, (p - o2) * 3.0)]);
         assert!((x - p).length() < 1e-9 && e < 1e-9);
         let (x, e) = triangulate(&[(o1, p - o1), (o2, p - o2), (o3, p - o3)]);
         assert!((x - p).length() < 1e-9 && e < 1e-9);
         // Skew lines: x axis and the line z = 2 along y. Shortest distance 2, midpoint (0, 0, 1).
-        let (x, e) = triangulate(&[(DVec3::new(5.0, 0.0, 0.0), DVec3::X), (DVec3::new(0.0, -3.0, 2.0), DVec3::Y)]);
+        let (x, e) = triangulate(&[
+            (DVec3::new(5.0, 0.0, 0.0), DVec3::X),
+            (DVec3::new(0.0, -3.0, 2.0), DVec3::Y),
+        ]);
         assert!((x - DVec3::new(0.0, 0.0, 1.0)).length() < 1e-12 && (e - 2.0).abs() < 1e-12);
         // Parallel rays: no point.
         let (x, e) = triangulate(&[(DVec3::ZERO, DVec3::X), (DVec3::Y, DVec3::X)]);
@@ -215,18 +255,27 @@ mod tests {
         let measured: Vec<DVec3> = model
             .iter()
             .enumerate()
-            .map(|(i, x)| truth.to_world(*x) + 0.05 * DVec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]))
+            .map(|(i, x)| {
+                truth.to_world(*x) + 0.05 * DVec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2])
+            })
             .collect();
         let fit = fit_rigid(&model, &measured).unwrap();
         // E|N(0, σ²I₃)| ≈ 1.6σ, shrunk by the 6 fitted DOF out of 24 coordinates.
-        assert!(fit.mean_error_mm > 0.02 && fit.mean_error_mm < 0.12, "{}", fit.mean_error_mm);
+        assert!(
+            fit.mean_error_mm > 0.02 && fit.mean_error_mm < 0.12,
+            "{}",
+            fit.mean_error_mm
+        );
         assert!((fit.pose.position_mm - truth.position_mm).length() < 0.1);
     }
 
     #[test]
     fn reflections_are_refused_and_the_rotation_stays_proper() {
         let model = markers();
-        let mirrored: Vec<DVec3> = model.iter().map(|x| DVec3::new(x.x, x.y, -x.z) + DVec3::new(1.0, 2.0, 3.0)).collect();
+        let mirrored: Vec<DVec3> = model
+            .iter()
+            .map(|x| DVec3::new(x.x, x.y, -x.z) + DVec3::new(1.0, 2.0, 3.0))
+            .collect();
         let fit = fit_rigid(&model, &mirrored).unwrap();
         assert!((fit.pose.rotation.determinant() - 1.0).abs() < 1e-12);
         let r = fit.pose.rotation;
@@ -236,7 +285,9 @@ mod tests {
 
     #[test]
     fn condition_number_tracks_collinearity() {
-        let line: Vec<DVec3> = (0..5).map(|k| DVec3::new(10.0 * k as f64, 5.0 * k as f64, -2.0 * k as f64)).collect();
+        let line: Vec<DVec3> = (0..5)
+            .map(|k| DVec3::new(10.0 * k as f64, 5.0 * k as f64, -2.0 * k as f64))
+            .collect();
         assert!(condition_number(&line).is_infinite());
         assert!(fit_rigid(&line, &line).is_err());
         // Nearly collinear (0.1 mm off the line): far beyond the 150 limit.
@@ -245,10 +296,18 @@ mod tests {
         assert!(condition_number(&near) > 1000.0);
         // A regular tetrahedron with 40 mm edges: well below the limit.
         let a = 40.0 / (2.0 * 2f64.sqrt());
-        let tetra = [DVec3::new(a, a, a), DVec3::new(a, -a, -a), DVec3::new(-a, a, -a), DVec3::new(-a, -a, a)];
+        let tetra = [
+            DVec3::new(a, a, a),
+            DVec3::new(a, -a, -a),
+            DVec3::new(-a, a, -a),
+            DVec3::new(-a, -a, a),
+        ];
         let cn = condition_number(&tetra);
         // σ² = 4a² for each axis, so CN = 1 / √(8a²) in m.
-        assert!((cn - 1000.0 / (8.0 * a * a).sqrt()).abs() < 1e-9 && cn < 50.0, "{cn}");
+        assert!(
+            (cn - 1000.0 / (8.0 * a * a).sqrt()).abs() < 1e-9 && cn < 50.0,
+            "{cn}"
+        );
         // Leiden-style check, unverified: 8 markers on a 40 mm cube's corners give 12.5 m⁻¹, not 9.8.
         let cube: Vec<DVec3> = (0..8)
             .map(|k| {

@@ -55,15 +55,37 @@ impl Plane {
         order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
         let [mid, hi] = [order[1], order[2]].map(|k| eig.eigenvalues[k]);
         if !(hi > 0.0 && hi.is_finite()) || mid <= 1e-12 * hi {
-            return Err("the fiducial beads are collinear (or all at one place): they span no plane".into());
+            return Err(
+                "the fiducial beads are collinear (or all at one place): they span no plane".into(),
+            );
         }
-        let col = |k: usize| DVec3::new(eig.eigenvectors[(0, k)], eig.eigenvectors[(1, k)], eig.eigenvectors[(2, k)]);
+        let col = |k: usize| {
+            DVec3::new(
+                eig.eigenvectors[(0, k)],
+                eig.eigenvectors[(1, k)],
+                eig.eigenvectors[(2, k)],
+            )
+        };
         let normal = col(order[0]).normalize();
         let e1 = col(order[2]).normalize();
         let e2 = normal.cross(e1).normalize();
-        let radius = (points.iter().map(|p| (*p - centre).length_squared()).sum::<f64>() / n as f64).sqrt();
-        let plane = Plane { centre, e1, e2, normal, radius };
-        let worst = points.iter().map(|p| plane.height(*p).abs()).fold(0.0, f64::max);
+        let radius = (points
+            .iter()
+            .map(|p| (*p - centre).length_squared())
+            .sum::<f64>()
+            / n as f64)
+            .sqrt();
+        let plane = Plane {
+            centre,
+            e1,
+            e2,
+            normal,
+            radius,
+        };
+        let worst = points
+            .iter()
+            .map(|p| plane.height(*p).abs())
+            .fold(0.0, f64::max);
         if worst > PLANE_TOLERANCE * radius {
             return Err(format!(
                 "the fiducial beads are not coplanar (a bead is {worst:.3} mm off their plane): use the beads of one fiducial plate"
@@ -94,10 +116,16 @@ impl Plane {
 fn homography(from: &[DVec2], to: &[DVec2]) -> Result<DMat3, String> {
     let n = from.len();
     if n < 4 {
-        return Err(format!("the image-to-fiducial-plane homography needs at least 4 fiducial beads, got {n}"));
+        return Err(format!(
+            "the image-to-fiducial-plane homography needs at least 4 fiducial beads, got {n}"
+        ));
     }
     let from: Vec<Vec<f64>> = from.iter().map(|p| p.to_array().to_vec()).collect();
-    let m = projective_dlt(&from, to, "degenerate fiducial configuration (3 or more beads in a line?): the homography is not unique")?;
+    let m = projective_dlt(
+        &from,
+        to,
+        "degenerate fiducial configuration (3 or more beads in a line?): the homography is not unique",
+    )?;
     let m = &m / m.norm();
     Ok(DMat3::from_cols(
         DVec3::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]),
@@ -129,7 +157,10 @@ fn intersect_lines(lines: &[(DVec3, DVec3)]) -> Result<DVec3, String> {
     if smallest.is_nan() || smallest <= 1e-10 * lines.len() as f64 {
         return Err("the control beads' lines do not meet in a point (all control beads in line with the focus?)".into());
     }
-    let s = a.lu().solve(&b).ok_or("singular line-intersection system")?;
+    let s = a
+        .lu()
+        .solve(&b)
+        .ok_or("singular line-intersection system")?;
     Ok(DVec3::new(s[0], s[1], s[2]))
 }
 
@@ -143,16 +174,30 @@ fn selvik_once(
     let (fp, fuv) = fiducial;
     let (cp, cuv) = control;
     if fp.len() != fuv.len() {
-        return Err(format!("{} fiducial beads but {} pixel positions", fp.len(), fuv.len()));
+        return Err(format!(
+            "{} fiducial beads but {} pixel positions",
+            fp.len(),
+            fuv.len()
+        ));
     }
     if cp.len() != cuv.len() {
-        return Err(format!("{} control beads but {} pixel positions", cp.len(), cuv.len()));
+        return Err(format!(
+            "{} control beads but {} pixel positions",
+            cp.len(),
+            cuv.len()
+        ));
     }
     if fp.len() < 4 {
-        return Err(format!("Selvik's method needs at least 4 fiducial beads, got {}", fp.len()));
+        return Err(format!(
+            "Selvik's method needs at least 4 fiducial beads, got {}",
+            fp.len()
+        ));
     }
     if cp.len() < 2 {
-        return Err(format!("Selvik's method needs at least 2 control beads, got {}", cp.len()));
+        return Err(format!(
+            "Selvik's method needs at least 2 control beads, got {}",
+            cp.len()
+        ));
     }
 
     // 1. Fiducial plane and the homography image → plane.
@@ -164,12 +209,18 @@ fn selvik_once(
     let mut lines = Vec::with_capacity(cp.len());
     for (k, (c, uv)) in cp.iter().zip(cuv).enumerate() {
         if plane.height(*c).abs() <= PLANE_TOLERANCE * plane.radius {
-            return Err(format!("control bead {k} lies in the fiducial plane: its line to the focus is undefined"));
+            return Err(format!(
+                "control bead {k} lies in the fiducial plane: its line to the focus is undefined"
+            ));
         }
-        let q = plane.point(apply_h(&h, *uv).ok_or("a control bead maps to infinity through the homography")?);
+        let q = plane.point(
+            apply_h(&h, *uv).ok_or("a control bead maps to infinity through the homography")?,
+        );
         let d = (*c - q).normalize();
         if !d.is_finite() {
-            return Err(format!("control bead {k} maps onto itself in the fiducial plane"));
+            return Err(format!(
+                "control bead {k} maps onto itself in the fiducial plane"
+            ));
         }
         lines.push((*c, d));
     }
@@ -198,7 +249,10 @@ fn selvik_once(
     let all: Vec<DVec3> = fp.iter().chain(cp).copied().collect();
     let decomposed = decompose(&p, pixels, pitch, &all)?;
     // P's null vector is S; keep the focus of step 2 exactly.
-    Ok(Beamline { source_mm: source, ..decomposed })
+    Ok(Beamline {
+        source_mm: source,
+        ..decomposed
+    })
 }
 
 /// Classic RSA calibration of one beamline from its fiducial plate (near the detector) and its
@@ -250,12 +304,17 @@ pub fn calibrate_selvik(
     let mut sorted = residuals.clone();
     sorted.sort_by(f64::total_cmp);
     let limit = (5.0 * sorted[sorted.len() / 2]).max(1.0);
-    let dropped: Vec<usize> = (0..all.len()).filter(|&i| residuals[i] > limit || residuals[i].is_nan()).collect();
+    let dropped: Vec<usize> = (0..all.len())
+        .filter(|&i| residuals[i] > limit || residuals[i].is_nan())
+        .collect();
     let beamline = if dropped.is_empty() {
         first
     } else {
         let keep = |range: std::ops::Range<usize>| -> (Vec<DVec3>, Vec<DVec2>) {
-            range.filter(|i| !dropped.contains(i)).map(|i| (all[i], all_uv[i])).unzip()
+            range
+                .filter(|i| !dropped.contains(i))
+                .map(|i| (all[i], all_uv[i]))
+                .unzip()
         };
         let (kf, kfu) = keep(0..nf);
         let (kc, kcu) = keep(nf..all.len());
@@ -263,28 +322,45 @@ pub fn calibrate_selvik(
             .map_err(|e| format!("after dropping {} outlier bead(s): {e}", dropped.len()))?
     };
     let residuals_px = point_residuals(&beamline, pixels, pitch, &all, &all_uv);
-    let kept: Vec<f64> = (0..all.len()).filter(|i| !dropped.contains(i)).map(|i| residuals_px[i]).collect();
+    let kept: Vec<f64> = (0..all.len())
+        .filter(|i| !dropped.contains(i))
+        .map(|i| residuals_px[i])
+        .collect();
     let rms_px = (kept.iter().map(|d| d * d).sum::<f64>() / kept.len().max(1) as f64).sqrt();
-    Ok(Refined { beamline, rms_px, residuals_px, iterations: 0, dropped })
+    Ok(Refined {
+        beamline,
+        rms_px,
+        residuals_px,
+        iterations: 0,
+        dropped,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::geometry::rotation_xyz_deg;
-    use crate::reconstruct::calibrate::tests::{PITCH, PIXELS, beamline_1, beamline_2, box_points, gaussians};
+    use crate::reconstruct::calibrate::tests::{
+        PITCH, PIXELS, beamline_1, beamline_2, box_points, gaussians,
+    };
 
     /// The fixture's box for beamline `k`: fiducial plate (9×9 at 20 mm, z = −100) and control
     /// plate (7×7 at 25 mm, z = +100) for beamline 1; the same turned by [0, 90, 0] (plates normal
     /// to x, fiducial at x = −100 near detector 2) for beamline 2.
     fn plates(k: usize) -> (Vec<DVec3>, Vec<DVec3>) {
-        let turn = if k == 1 { DMat3::IDENTITY } else { rotation_xyz_deg([0.0, 90.0, 0.0]) };
+        let turn = if k == 1 {
+            DMat3::IDENTITY
+        } else {
+            rotation_xyz_deg([0.0, 90.0, 0.0])
+        };
         let pts: Vec<DVec3> = box_points().iter().map(|p| turn * *p).collect();
         (pts[..81].to_vec(), pts[81..].to_vec())
     }
 
     fn project(b: &Beamline, pts: &[DVec3]) -> Vec<DVec2> {
-        pts.iter().map(|p| b.project(PIXELS, PITCH, *p).expect("bead projects")).collect()
+        pts.iter()
+            .map(|p| b.project(PIXELS, PITCH, *p).expect("bead projects"))
+            .collect()
     }
 
     fn angle_deg(a: DMat3, b: DMat3) -> f64 {
@@ -297,7 +373,10 @@ mod tests {
     type Setup = (&'static str, Beamline, (Vec<DVec3>, Vec<DVec3>));
 
     fn setups() -> [Setup; 2] {
-        [("beamline 1", beamline_1(), plates(1)), ("beamline 2", beamline_2(), plates(2))]
+        [
+            ("beamline 1", beamline_1(), plates(1)),
+            ("beamline 2", beamline_2(), plates(2)),
+        ]
     }
 
     #[test]
@@ -309,7 +388,10 @@ mod tests {
             let es = (b.source_mm - actual.source_mm).length();
             let ed = (b.detector.position_mm - actual.detector.position_mm).length();
             let tilt = angle_deg(b.detector.rotation, actual.detector.rotation);
-            eprintln!("{name} exact: source {es:.2e} mm, detector {ed:.2e} mm, tilt {tilt:.2e}°, rms {:.2e} px", fit.rms_px);
+            eprintln!(
+                "{name} exact: source {es:.2e} mm, detector {ed:.2e} mm, tilt {tilt:.2e}°, rms {:.2e} px",
+                fit.rms_px
+            );
             assert!(es < 1e-6, "{name}: source off by {es}");
             assert!(ed < 1e-6, "{name}: detector off by {ed}");
             assert!(tilt < 1e-6, "{name}: detector tilted by {tilt}°");
@@ -325,13 +407,18 @@ mod tests {
         for (name, actual, (f, c)) in setups() {
             let noisy = |label: &str, pts: &[DVec3]| -> Vec<DVec2> {
                 let g = gaussians(&format!("selvik noise {name} {label}"), 2 * pts.len());
-                project(&actual, pts).iter().enumerate().map(|(i, q)| *q + 0.1 * DVec2::new(g[2 * i], g[2 * i + 1])).collect()
+                project(&actual, pts)
+                    .iter()
+                    .enumerate()
+                    .map(|(i, q)| *q + 0.1 * DVec2::new(g[2 * i], g[2 * i + 1]))
+                    .collect()
             };
             let (fu, cu) = (noisy("fiducial", &f), noisy("control", &c));
             let fit = calibrate_selvik((&f, &fu), (&c, &cu), PIXELS, PITCH).unwrap();
             let rot = actual.detector.rotation;
             let e = rot.transpose() * (fit.beamline.source_mm - actual.source_mm);
-            let ed = rot.transpose() * (fit.beamline.detector.position_mm - actual.detector.position_mm);
+            let ed =
+                rot.transpose() * (fit.beamline.detector.position_mm - actual.detector.position_mm);
             let tilt = angle_deg(fit.beamline.detector.rotation, rot);
             eprintln!(
                 "{name} Selvik σ = 0.1 px: rms {:.4} px, source error r {:+.4} c {:+.4} s {:+.4} mm, \
@@ -342,7 +429,10 @@ mod tests {
             assert!(fit.rms_px < 0.3, "rms {}", fit.rms_px);
             assert!(e.x.abs() < 0.5 && e.y.abs() < 0.5, "{e:?}");
             assert!(e.z.abs() < 10.0, "{e:?}");
-            assert!(ed.x.abs() < 1.0 && ed.y.abs() < 1.0 && ed.z.abs() < 10.0, "{ed:?}");
+            assert!(
+                ed.x.abs() < 1.0 && ed.y.abs() < 1.0 && ed.z.abs() < 10.0,
+                "{ed:?}"
+            );
             // The tilt rests on the projective part of H, fitted to the fiducials alone: the weak
             // spot of the classic method (the DLT + LM route gets ~0.02° here).
             assert!(tilt < 0.5, "tilt {tilt}");
@@ -366,7 +456,12 @@ mod tests {
         let (actual, (f, c)) = (beamline_1(), plates(1));
         let (fu, cu) = (project(&actual, &f), project(&actual, &c));
         let ok = |fr: std::ops::Range<usize>, cr: std::ops::Range<usize>| {
-            calibrate_selvik((&f[fr.clone()], &fu[fr]), (&c[cr.clone()], &cu[cr]), PIXELS, PITCH)
+            calibrate_selvik(
+                (&f[fr.clone()], &fu[fr]),
+                (&c[cr.clone()], &cu[cr]),
+                PIXELS,
+                PITCH,
+            )
         };
         // Enough: 4 fiducial beads in general position, 2 control beads.
         assert!(ok(0..81, 0..49).is_ok());

@@ -28,12 +28,22 @@ pub struct LoadedScenario {
 /// (a parse error stops at the first; semantic checks report them all).
 pub fn load(path: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
     let bytes = std::fs::read(path).map_err(|e| {
-        vec![Diagnostic::file_error(path, format!("cannot read the scenario file: {e}"))
-            .with_help("give the path of a scenario .toml file, e.g. scenarios/biplanar.toml")]
+        vec![
+            Diagnostic::file_error(path, format!("cannot read the scenario file: {e}"))
+                .with_help("give the path of a scenario .toml file, e.g. scenarios/biplanar.toml"),
+        ]
     })?;
     let text = String::from_utf8(bytes).map_err(|e| {
-        vec![Diagnostic::file_error(path, format!("the file is not UTF-8 text (byte {})", e.utf8_error().valid_up_to()))
-            .with_help("scenario files are TOML, which must be UTF-8")]
+        vec![
+            Diagnostic::file_error(
+                path,
+                format!(
+                    "the file is not UTF-8 text (byte {})",
+                    e.utf8_error().valid_up_to()
+                ),
+            )
+            .with_help("scenario files are TOML, which must be UTF-8"),
+        ]
     })?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     from_text(&text, path, &base_dir)
@@ -41,7 +51,11 @@ pub fn load(path: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
 
 /// Parses and validates scenario text. `path` names it in diagnostics; mesh paths resolve
 /// against `base_dir`. Used by [`load`] and by tests that build scenarios in memory.
-pub fn from_text(text: &str, path: &Path, base_dir: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
+pub fn from_text(
+    text: &str,
+    path: &Path,
+    base_dir: &Path,
+) -> Result<LoadedScenario, Vec<Diagnostic>> {
     let locator = Locator::new(path, text);
     let scenario: Scenario = toml::from_str(text).map_err(|e| {
         let message = e.message().trim_end().to_string();
@@ -52,7 +66,8 @@ pub fn from_text(text: &str, path: &Path, base_dir: &Path) -> Result<LoadedScena
         vec![d]
     })?;
     let diagnostics = validate(&scenario, &locator);
-    let (errors, warnings): (Vec<_>, Vec<_>) = diagnostics.into_iter().partition(Diagnostic::is_error);
+    let (errors, warnings): (Vec<_>, Vec<_>) =
+        diagnostics.into_iter().partition(Diagnostic::is_error);
     if !errors.is_empty() {
         return Err(errors);
     }

@@ -50,7 +50,10 @@ impl Phantom {
             (Some(b), None, None) => PhantomShape::Beads(b),
             (None, Some(c), None) => PhantomShape::CalibrationBox(c),
             (None, None, Some(m)) => PhantomShape::Mesh(m),
-            _ => panic!("phantom `{}` was not validated: it needs exactly one shape", self.id),
+            _ => panic!(
+                "phantom `{}` was not validated: it needs exactly one shape",
+                self.id
+            ),
         }
     }
 

@@ -64,12 +64,17 @@ impl Protocol {
 
 impl Default for Protocol {
     fn default() -> Self {
-        Protocol { noise_levels: Self::paper_noise_levels(), runs_per_level: Self::paper_runs_per_level() }
+        Protocol {
+            noise_levels: Self::paper_noise_levels(),
+            runs_per_level: Self::paper_runs_per_level(),
+        }
     }
 }
 
 /// An image file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, JsonSchema)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum ImageFormat {
     /// 16-bit grayscale TIFF (`.tiff`), detector counts 0..=I_max.

@@ -11,17 +11,40 @@ const MAX_PIXELS_PER_AXIS: u32 = 65_535;
 
 /// All findings on `s`, errors and warnings, in file order of the sections.
 pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
-    let mut v = Checker { loc, out: Vec::new() };
+    let mut v = Checker {
+        loc,
+        out: Vec::new(),
+    };
     let root = KeyPath::root();
     v.id(&root.key("name"), &s.name, "the scenario name");
     v.protocol(&s.protocol);
     if s.output.formats.is_empty() {
-        v.err(root.key("output").key("formats"), "no image format is selected", "list at least one of \"tiff\", \"exr\"");
+        v.err(
+            root.key("output").key("formats"),
+            "no image format is selected",
+            "list at least one of \"tiff\", \"exr\"",
+        );
     }
-    v.unique_ids(&root.key("sources"), s.sources.iter().map(|x| x.id.as_str()), "source");
-    v.unique_ids(&root.key("detectors"), s.detectors.iter().map(|x| x.id.as_str()), "detector");
-    v.unique_ids(&root.key("phantoms"), s.phantoms.iter().map(|x| x.id.as_str()), "phantom");
-    v.unique_ids(&root.key("exposures"), s.exposures.iter().map(|x| x.id.as_str()), "exposure");
+    v.unique_ids(
+        &root.key("sources"),
+        s.sources.iter().map(|x| x.id.as_str()),
+        "source",
+    );
+    v.unique_ids(
+        &root.key("detectors"),
+        s.detectors.iter().map(|x| x.id.as_str()),
+        "detector",
+    );
+    v.unique_ids(
+        &root.key("phantoms"),
+        s.phantoms.iter().map(|x| x.id.as_str()),
+        "phantom",
+    );
+    v.unique_ids(
+        &root.key("exposures"),
+        s.exposures.iter().map(|x| x.id.as_str()),
+        "exposure",
+    );
     v.nonempty(&root.key("sources"), s.sources.len(), "[[sources]]");
     v.nonempty(&root.key("detectors"), s.detectors.len(), "[[detectors]]");
     v.nonempty(&root.key("phantoms"), s.phantoms.len(), "[[phantoms]]");
@@ -29,7 +52,10 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     for (i, src) in s.sources.iter().enumerate() {
         let p = root.key("sources").index(i);
         v.finite3(&p.key("position_mm"), src.position_mm);
-        v.range3(&p.key("randomize").key("position_mm"), src.randomize.position_mm);
+        v.range3(
+            &p.key("randomize").key("position_mm"),
+            src.randomize.position_mm,
+        );
     }
     let source_ids: Vec<&str> = s.sources.iter().map(|x| x.id.as_str()).collect();
     for (i, d) in s.detectors.iter().enumerate() {
@@ -43,7 +69,11 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     for (i, e) in s.exposures.iter().enumerate() {
         let p = root.key("exposures").index(i);
         if e.phantoms.is_empty() {
-            v.err(p.key("phantoms"), "the exposure has no phantoms", "list the ids of the phantoms in the beam");
+            v.err(
+                p.key("phantoms"),
+                "the exposure has no phantoms",
+                "list the ids of the phantoms in the beam",
+            );
         }
         for (k, id) in e.phantoms.iter().enumerate() {
             used.insert(id.as_str());
@@ -60,7 +90,10 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
         if !used.contains(ph.id.as_str()) {
             v.warn(
                 root.key("phantoms").index(i).key("id"),
-                format!("phantom `{}` appears in no exposure, so no image shows it", ph.id),
+                format!(
+                    "phantom `{}` appears in no exposure, so no image shows it",
+                    ph.id
+                ),
             );
         }
     }
@@ -68,7 +101,10 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
 }
 
 fn quoted(ids: &[&str]) -> String {
-    ids.iter().map(|s| format!("`{s}`")).collect::<Vec<_>>().join(", ")
+    ids.iter()
+        .map(|s| format!("`{s}`"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 struct Checker<'a> {
@@ -87,13 +123,19 @@ impl Checker<'_> {
 
     fn nonempty(&mut self, path: &KeyPath, n: usize, what: &str) {
         if n == 0 {
-            self.err(path.clone(), format!("the scenario has no {what}"), format!("add at least one {what} table"));
+            self.err(
+                path.clone(),
+                format!("the scenario has no {what}"),
+                format!("add at least one {what} table"),
+            );
         }
     }
 
     fn id(&mut self, path: &KeyPath, id: &str, what: &str) {
         let ok = !id.is_empty()
-            && id.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+            && id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
             && !id.starts_with('.');
         if !ok {
             self.err(
@@ -120,13 +162,21 @@ impl Checker<'_> {
 
     fn finite3(&mut self, path: &KeyPath, v: [f64; 3]) {
         if v.iter().any(|x| !x.is_finite()) {
-            self.err(path.clone(), format!("{v:?} is not a finite vector"), "use three finite numbers [x, y, z]");
+            self.err(
+                path.clone(),
+                format!("{v:?} is not a finite vector"),
+                "use three finite numbers [x, y, z]",
+            );
         }
     }
 
     fn positive(&mut self, path: &KeyPath, v: &[f64], what: &str) {
         if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-            self.err(path.clone(), format!("{what} must be positive, got {v:?}"), format!("give a positive {what}"));
+            self.err(
+                path.clone(),
+                format!("{what} must be positive, got {v:?}"),
+                format!("give a positive {what}"),
+            );
         }
     }
 
@@ -143,7 +193,11 @@ impl Checker<'_> {
     fn protocol(&mut self, p: &Protocol) {
         let path = KeyPath::root().key("protocol");
         if p.noise_levels.is_empty() {
-            self.err(path.key("noise_levels"), "no noise levels", "the paper uses [0.0, 0.225, 0.45, 0.675, 0.9]");
+            self.err(
+                path.key("noise_levels"),
+                "no noise levels",
+                "the paper uses [0.0, 0.225, 0.45, 0.675, 0.9]",
+            );
         }
         for (i, l) in p.noise_levels.iter().enumerate() {
             if !(0.0..=1.0).contains(l) {
@@ -155,7 +209,11 @@ impl Checker<'_> {
             }
         }
         if p.runs_per_level == 0 {
-            self.err(path.key("runs_per_level"), "runs_per_level is 0", "use at least 1 (the paper uses 20)");
+            self.err(
+                path.key("runs_per_level"),
+                "runs_per_level is 0",
+                "use at least 1 (the paper uses 20)",
+            );
         }
     }
 
@@ -189,28 +247,52 @@ impl Checker<'_> {
             ),
         }
         if !(1..=16).contains(&d.bpp) {
-            self.err(p.key("bpp"), format!("bpp {} is out of range", d.bpp), "bpp must be 1..=16 (images are stored in 16 bits)");
+            self.err(
+                p.key("bpp"),
+                format!("bpp {} is out of range", d.bpp),
+                "bpp must be 1..=16 (images are stored in 16 bits)",
+            );
         }
         self.finite3(&p.key("position_mm"), d.position_mm);
         self.finite3(&p.key("rotation_deg"), d.rotation_deg);
-        self.range3(&p.key("randomize").key("position_mm"), d.randomize.position_mm);
-        self.range3(&p.key("randomize").key("rotation_deg"), d.randomize.rotation_deg);
+        self.range3(
+            &p.key("randomize").key("position_mm"),
+            d.randomize.position_mm,
+        );
+        self.range3(
+            &p.key("randomize").key("rotation_deg"),
+            d.randomize.rotation_deg,
+        );
     }
 
     fn beads(&mut self, p: &KeyPath, beads: &[Bead]) {
         self.unique_ids(p, beads.iter().map(|b| b.id.as_str()), "bead");
         for (i, b) in beads.iter().enumerate() {
             self.finite3(&p.index(i).key("position_mm"), b.position_mm);
-            self.positive(&p.index(i).key("diameter_mm"), &[b.diameter_mm], "bead diameter");
+            self.positive(
+                &p.index(i).key("diameter_mm"),
+                &[b.diameter_mm],
+                "bead diameter",
+            );
         }
     }
 
     fn phantom(&mut self, p: &KeyPath, ph: &Phantom) {
         self.finite3(&p.key("position_mm"), ph.position_mm);
         self.finite3(&p.key("rotation_deg"), ph.rotation_deg);
-        self.range3(&p.key("randomize").key("position_mm"), ph.randomize.position_mm);
-        self.range3(&p.key("randomize").key("rotation_deg"), ph.randomize.rotation_deg);
-        let shapes = [ph.beads.is_some(), ph.calibration_box.is_some(), ph.mesh.is_some()];
+        self.range3(
+            &p.key("randomize").key("position_mm"),
+            ph.randomize.position_mm,
+        );
+        self.range3(
+            &p.key("randomize").key("rotation_deg"),
+            ph.randomize.rotation_deg,
+        );
+        let shapes = [
+            ph.beads.is_some(),
+            ph.calibration_box.is_some(),
+            ph.mesh.is_some(),
+        ];
         if shapes.iter().filter(|x| **x).count() != 1 {
             self.err(
                 p.clone(),
@@ -222,7 +304,11 @@ impl Checker<'_> {
         match ph.shape() {
             PhantomShape::Beads(beads) => {
                 if beads.is_empty() {
-                    self.err(p.key("beads"), "the bead set is empty", "add [[phantoms.beads]] tables");
+                    self.err(
+                        p.key("beads"),
+                        "the bead set is empty",
+                        "add [[phantoms.beads]] tables",
+                    );
                 }
                 self.beads(&p.key("beads"), beads);
             }
@@ -238,22 +324,39 @@ impl Checker<'_> {
 
     fn calibration_box(&mut self, p: &KeyPath, b: &CalibrationBox) {
         if b.plates.is_empty() {
-            self.err(p.key("plates"), "the calibration box has no plates", "add [[phantoms.calibration_box.plates]] tables");
+            self.err(
+                p.key("plates"),
+                "the calibration box has no plates",
+                "add [[phantoms.calibration_box.plates]] tables",
+            );
         }
-        self.unique_ids(&p.key("plates"), b.plates.iter().map(|x| x.id.as_str()), "plate");
+        self.unique_ids(
+            &p.key("plates"),
+            b.plates.iter().map(|x| x.id.as_str()),
+            "plate",
+        );
         for (i, plate) in b.plates.iter().enumerate() {
             let pp = p.key("plates").index(i);
             self.finite3(&pp.key("center_mm"), plate.center_mm);
             self.finite3(&pp.key("rotation_deg"), plate.rotation_deg);
             self.positive(&pp.key("size_mm"), &plate.size_mm, "plate size");
             self.positive(&pp.key("spacing_mm"), &plate.spacing_mm, "bead spacing");
-            self.positive(&pp.key("bead_diameter_mm"), &[plate.bead_diameter_mm], "bead diameter");
+            self.positive(
+                &pp.key("bead_diameter_mm"),
+                &[plate.bead_diameter_mm],
+                "bead diameter",
+            );
             if plate.grid.iter().any(|&n| n == 0 || n > 1000) {
-                self.err(pp.key("grid"), format!("grid {:?} is out of range", plate.grid), "give [columns, rows], each 1..=1000");
+                self.err(
+                    pp.key("grid"),
+                    format!("grid {:?} is out of range", plate.grid),
+                    "give [columns, rows], each 1..=1000",
+                );
                 continue;
             }
             for k in 0..2 {
-                let extent = (plate.grid[k] - 1) as f64 * plate.spacing_mm[k] + plate.bead_diameter_mm;
+                let extent =
+                    (plate.grid[k] - 1) as f64 * plate.spacing_mm[k] + plate.bead_diameter_mm;
                 if extent > plate.size_mm[k] {
                     self.err(
                         pp.key("size_mm"),
@@ -267,7 +370,11 @@ impl Checker<'_> {
                 }
             }
             if plate.spacing_mm.iter().any(|&s| s < plate.bead_diameter_mm) {
-                self.err(pp.key("spacing_mm"), "beads would touch or overlap", "make spacing_mm larger than bead_diameter_mm");
+                self.err(
+                    pp.key("spacing_mm"),
+                    "beads would touch or overlap",
+                    "make spacing_mm larger than bead_diameter_mm",
+                );
             }
             for (k, o) in plate.omit.iter().enumerate() {
                 if o[0] >= plate.grid[0] || o[1] >= plate.grid[1] {

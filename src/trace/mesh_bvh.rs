@@ -3,11 +3,11 @@
 use std::time::Duration;
 
 use glam::{DVec3, Vec3A};
+use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
 
 use super::watertight::ShearedRay;
 use crate::phantom::TriMesh;
@@ -26,10 +26,30 @@ impl MeshBvh {
     /// Builds the BVH (obvhs `medium_build`, single-threaded: the layout is deterministic).
     pub fn new(mesh: &TriMesh) -> MeshBvh {
         let v = |i: u32| Vec3A::from_array(mesh.vertices[i as usize]);
-        let tris: Vec<Triangle> = mesh.triangles.iter().map(|t| Triangle { v0: v(t[0]), v1: v(t[1]), v2: v(t[2]) }).collect();
-        let bvh = build_bvh2_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
-        let triangles = bvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
-        MeshBvh { bvh, triangles, bounds_mm: mesh.bounds_mm() }
+        let tris: Vec<Triangle> = mesh
+            .triangles
+            .iter()
+            .map(|t| Triangle {
+                v0: v(t[0]),
+                v1: v(t[1]),
+                v2: v(t[2]),
+            })
+            .collect();
+        let bvh = build_bvh2_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let triangles = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        MeshBvh {
+            bvh,
+            triangles,
+            bounds_mm: mesh.bounds_mm(),
+        }
     }
 
     /// Whether the segment `origin + t·direction`, 0 < t < 1, crosses the mesh surface.
@@ -37,10 +57,12 @@ impl MeshBvh {
         let (o, d) = (origin.as_vec3a(), direction.as_vec3a());
         let sheared = ShearedRay::new(o, d);
         let tris = &self.triangles;
-        !self.bvh.ray_traverse_miss(Ray::new(o, d, 0.0, 1.0), |_, id| {
-            let t = &tris[id];
-            sheared.intersect(t.v0, t.v1, t.v2, 0.0, 1.0)
-        })
+        !self
+            .bvh
+            .ray_traverse_miss(Ray::new(o, d, 0.0, 1.0), |_, id| {
+                let t = &tris[id];
+                sheared.intersect(t.v0, t.v1, t.v2, 0.0, 1.0)
+            })
     }
 
     /// Every crossing parameter `t` (0 < t < 1) of the segment with the surface, sorted.
@@ -48,13 +70,14 @@ impl MeshBvh {
         let (o, d) = (origin.as_vec3a(), direction.as_vec3a());
         let sheared = ShearedRay::new(o, d);
         let mut ts = Vec::new();
-        self.bvh.ray_traverse_anyhit(Ray::new(o, d, 0.0, 1.0), |_, id| {
-            let t = &self.triangles[id];
-            let hit = sheared.intersect(t.v0, t.v1, t.v2, 0.0, 1.0);
-            if hit.is_finite() {
-                ts.push(hit);
-            }
-        });
+        self.bvh
+            .ray_traverse_anyhit(Ray::new(o, d, 0.0, 1.0), |_, id| {
+                let t = &self.triangles[id];
+                let hit = sheared.intersect(t.v0, t.v1, t.v2, 0.0, 1.0);
+                if hit.is_finite() {
+                    ts.push(hit);
+                }
+            });
         ts.sort_by(f32::total_cmp);
         ts
     }
@@ -75,7 +98,10 @@ mod tests {
                 let target = DVec3::new(-12.0 + 0.2 * i as f64, -12.0 + 0.2 * j as f64, -100.0);
                 let crossings = bvh.segment_crossings(origin, target - origin);
                 assert_eq!(crossings.len() % 2, 0, "odd crossing count at ({i}, {j})");
-                assert_eq!(bvh.segment_hits(origin, target - origin), !crossings.is_empty());
+                assert_eq!(
+                    bvh.segment_hits(origin, target - origin),
+                    !crossings.is_empty()
+                );
                 hits += usize::from(!crossings.is_empty());
             }
         }

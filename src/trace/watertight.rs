@@ -63,7 +63,8 @@ impl ShearedRay {
         let mut v = ax * cy - ay * cx;
         let mut w = bx * ay - by * ax;
         if u == 0.0 || v == 0.0 || w == 0.0 {
-            let f = |p: f32, q: f32, r: f32, s: f32| (p as f64 * q as f64 - r as f64 * s as f64) as f32;
+            let f =
+                |p: f32, q: f32, r: f32, s: f32| (p as f64 * q as f64 - r as f64 * s as f64) as f32;
             u = f(cx, by, cy, bx);
             v = f(ax, cy, ay, cx);
             w = f(bx, ay, by, ax);
@@ -79,7 +80,11 @@ impl ShearedRay {
         let bz = self.sz * b[kz];
         let cz = self.sz * c[kz];
         let t_scaled = u * az + v * bz + w * cz;
-        let (t_scaled, det) = if det < 0.0 { (-t_scaled, -det) } else { (t_scaled, det) };
+        let (t_scaled, det) = if det < 0.0 {
+            (-t_scaled, -det)
+        } else {
+            (t_scaled, det)
+        };
         if t_scaled <= t_min * det || t_scaled >= t_max * det {
             return f32::INFINITY;
         }
@@ -94,7 +99,11 @@ mod tests {
 
     #[test]
     fn hits_inside_misses_outside_and_reports_t() {
-        let (v0, v1, v2) = (vec3a(0.0, 0.0, 5.0), vec3a(1.0, 0.0, 5.0), vec3a(0.0, 1.0, 5.0));
+        let (v0, v1, v2) = (
+            vec3a(0.0, 0.0, 5.0),
+            vec3a(1.0, 0.0, 5.0),
+            vec3a(0.0, 1.0, 5.0),
+        );
         let r = ShearedRay::new(vec3a(0.2, 0.2, 0.0), vec3a(0.0, 0.0, 2.0));
         assert!((r.intersect(v0, v1, v2, 0.0, 10.0) - 2.5).abs() < 1e-6);
         // Beyond t_max, and a ray beside the triangle, miss.
@@ -106,11 +115,19 @@ mod tests {
     #[test]
     fn a_ray_through_a_shared_edge_hits_one_of_the_two_triangles() {
         // Two triangles sharing the diagonal of the unit square; rays exactly on the diagonal.
-        let (a, b, c, d) = (vec3a(0.0, 0.0, 1.0), vec3a(1.0, 0.0, 1.0), vec3a(1.0, 1.0, 1.0), vec3a(0.0, 1.0, 1.0));
+        let (a, b, c, d) = (
+            vec3a(0.0, 0.0, 1.0),
+            vec3a(1.0, 0.0, 1.0),
+            vec3a(1.0, 1.0, 1.0),
+            vec3a(0.0, 1.0, 1.0),
+        );
         for k in 1..100 {
             let x = k as f32 / 100.0;
             let r = ShearedRay::new(vec3a(x, x, 0.0), vec3a(0.0, 0.0, 1.0));
-            let hits = [r.intersect(a, b, c, 0.0, 2.0), r.intersect(a, c, d, 0.0, 2.0)];
+            let hits = [
+                r.intersect(a, b, c, 0.0, 2.0),
+                r.intersect(a, c, d, 0.0, 2.0),
+            ];
             assert!(hits.iter().any(|t| t.is_finite()), "ray at {x} leaked");
         }
     }

@@ -22,7 +22,11 @@ pub fn rsasim(args: &[&str], env: &[(&str, &str)]) -> Output {
 /// Runs a scenario into `out` and panics with its stderr on failure.
 pub fn run_scenario(scenario: &str, out: &Path, env: &[(&str, &str)]) {
     let o = rsasim(&[scenario, "--out", out.to_str().unwrap()], env);
-    assert!(o.status.success(), "rsasim {scenario} failed:\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "rsasim {scenario} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// Every file under `dir` as (relative path with `/`, SHA-256), sorted.
@@ -36,7 +40,11 @@ pub fn hashes(dir: &Path) -> Vec<(String, String)> {
             if p.is_dir() {
                 stack.push(p);
             } else {
-                let rel = p.strip_prefix(dir).unwrap().components().map(|c| c.as_os_str().to_string_lossy().into_owned());
+                let rel = p
+                    .strip_prefix(dir)
+                    .unwrap()
+                    .components()
+                    .map(|c| c.as_os_str().to_string_lossy().into_owned());
                 let rel = rel.collect::<Vec<_>>().join("/");
                 let sha = Sha256::digest(std::fs::read(&p).unwrap());
                 out.push((rel, sha.iter().map(|b| format!("{b:02x}")).collect()));
@@ -49,7 +57,9 @@ pub fn hashes(dir: &Path) -> Vec<(String, String)> {
 
 /// Decodes a 16-bit TIFF into (width, height, pixels).
 pub fn read_tiff(path: &Path) -> (u32, u32, Vec<u16>) {
-    let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap())).unwrap();
+    let mut dec =
+        tiff::decoder::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()))
+            .unwrap();
     let (w, h) = dec.dimensions().unwrap();
     match dec.read_image().unwrap() {
         tiff::decoder::DecodingResult::U16(v) => (w, h, v),
@@ -63,7 +73,8 @@ pub fn truths(out: &Path) -> Vec<(PathBuf, rsasim::output::Truth)> {
         .unwrap()
         .map(|e| {
             let dir = e.unwrap().path();
-            let truth = serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
+            let truth =
+                serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
             (dir, truth)
         })
         .collect();

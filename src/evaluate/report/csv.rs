@@ -5,8 +5,20 @@ use crate::evaluate::stats::Significance;
 use crate::evaluate::table::Report;
 
 /// Header of [`csv`].
-pub(crate) const HEADER: [&str; 12] =
-    ["table", "group", "parameter", "unit", "noise_level", "n", "trueness", "precision", "sd", "tau", "rms", "significance"];
+pub(crate) const HEADER: [&str; 12] = [
+    "table",
+    "group",
+    "parameter",
+    "unit",
+    "noise_level",
+    "n",
+    "trueness",
+    "precision",
+    "sd",
+    "tau",
+    "rms",
+    "significance",
+];
 
 /// One long table, one row per (table, group, parameter, noise level), the paper's tables first
 /// and the MTPM table last. Numbers are Rust's shortest round-trip `{}` formatting (NaN where
@@ -57,7 +69,8 @@ pub fn csv_iso5725(report: &Report) -> String {
     };
     w.write_record(&keys).expect("write to memory");
     for g in &report.group_analyses {
-        w.write_record(iso::fields(g).iter().map(|f| f.value.exact())).expect("write to memory");
+        w.write_record(iso::fields(g).iter().map(|f| f.value.exact()))
+            .expect("write to memory");
     }
     finish(w)
 }
@@ -72,7 +85,9 @@ pub(crate) fn significance(s: Significance) -> &'static str {
 }
 
 fn writer() -> ::csv::Writer<Vec<u8>> {
-    ::csv::WriterBuilder::new().terminator(::csv::Terminator::Any(b'\n')).from_writer(Vec::new())
+    ::csv::WriterBuilder::new()
+        .terminator(::csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new())
 }
 
 fn finish(w: ::csv::Writer<Vec<u8>>) -> String {
@@ -86,7 +101,10 @@ mod tests {
     use crate::evaluate::report::columns;
 
     fn parse(text: &str) -> Vec<::csv::StringRecord> {
-        ::csv::Reader::from_reader(text.as_bytes()).records().map(|r| r.unwrap()).collect()
+        ::csv::Reader::from_reader(text.as_bytes())
+            .records()
+            .map(|r| r.unwrap())
+            .collect()
     }
 
     fn same(a: f64, text: &str) -> bool {
@@ -104,12 +122,24 @@ mod tests {
             for row in &table.rows {
                 for ((g, c), cell) in columns(table).zip(&row.cells) {
                     let rec = rows.next().unwrap();
-                    assert_eq!((&rec[0], &rec[1], &rec[2], &rec[3]), (table.id.as_str(), g.label.as_str(), c.label.as_str(), c.unit.as_str()));
+                    assert_eq!(
+                        (&rec[0], &rec[1], &rec[2], &rec[3]),
+                        (
+                            table.id.as_str(),
+                            g.label.as_str(),
+                            c.label.as_str(),
+                            c.unit.as_str()
+                        )
+                    );
                     assert!(same(row.noise_level, &rec[4]));
                     match cell {
                         Some(cell) => {
                             assert_eq!(rec[5].parse::<usize>().unwrap(), cell.n);
-                            for (i, x) in [cell.trueness, cell.precision, cell.sd, cell.tau, cell.rms].into_iter().enumerate() {
+                            for (i, x) in
+                                [cell.trueness, cell.precision, cell.sd, cell.tau, cell.rms]
+                                    .into_iter()
+                                    .enumerate()
+                            {
                                 assert!(same(x, &rec[6 + i]), "{} vs {}", x, &rec[6 + i]);
                             }
                             assert_eq!(&rec[11], significance(cell.significance));

@@ -16,7 +16,11 @@ pub const NONE: [f64; 5] = [-0.25, 0.5, 0.125, -0.375, 0.0];
 
 /// A column.
 pub fn column(label: &str, latex: &str, unit: &str) -> Column {
-    Column { label: label.into(), latex: latex.into(), unit: unit.into() }
+    Column {
+        label: label.into(),
+        latex: latex.into(),
+        unit: unit.into(),
+    }
 }
 
 fn cell(residuals: &[f64]) -> Option<Cell> {
@@ -30,14 +34,28 @@ pub fn report() -> Report {
         id: "sources".into(),
         caption: "Source positions (trueness ± precision), along each beamline's r, c, s".into(),
         groups: vec![
-            ColumnGroup { label: "tube1".into(), columns: vec![column("x_r", "x_{r}", "mm"), column("y_c", "y_{c}", "mm")] },
-            ColumnGroup { label: "tube2".into(), columns: vec![column("x_s", "x_{s}", "mm"), column("y_r", "y_{r}", "mm")] },
+            ColumnGroup {
+                label: "tube1".into(),
+                columns: vec![column("x_r", "x_{r}", "mm"), column("y_c", "y_{c}", "mm")],
+            },
+            ColumnGroup {
+                label: "tube2".into(),
+                columns: vec![column("x_s", "x_{s}", "mm"), column("y_r", "y_{r}", "mm")],
+            },
         ],
         rows: vec![
-            Row { noise_level: 0.0, cells: vec![cell(&POSITIVE), cell(&NONE), cell(&NEGATIVE), cell(&[0.3])] },
+            Row {
+                noise_level: 0.0,
+                cells: vec![cell(&POSITIVE), cell(&NONE), cell(&NEGATIVE), cell(&[0.3])],
+            },
             Row {
                 noise_level: 0.225,
-                cells: vec![cell(&shifted(&NONE, 0.01)), cell(&NONE), cell(&shifted(&NONE, -0.02)), None],
+                cells: vec![
+                    cell(&shifted(&NONE, 0.01)),
+                    cell(&NONE),
+                    cell(&shifted(&NONE, -0.02)),
+                    None,
+                ],
             },
         ],
     };
@@ -45,12 +63,24 @@ pub fn report() -> Report {
         id: "detector-det1".into(),
         caption: "Detector det1 (trueness ± precision), along its r, c, s".into(),
         groups: vec![
-            ColumnGroup { label: "orientation".into(), columns: vec![column("α_r", "\\alpha_{r}", "deg")] },
-            ColumnGroup { label: "position".into(), columns: vec![column("s", "s", "mm")] },
+            ColumnGroup {
+                label: "orientation".into(),
+                columns: vec![column("α_r", "\\alpha_{r}", "deg")],
+            },
+            ColumnGroup {
+                label: "position".into(),
+                columns: vec![column("s", "s", "mm")],
+            },
         ],
         rows: vec![
-            Row { noise_level: 0.0, cells: vec![cell(&NONE), cell(&NONE[..4])] },
-            Row { noise_level: 0.225, cells: vec![cell(&shifted(&NONE, 0.03)), cell(&shifted(&NONE, -0.04))] },
+            Row {
+                noise_level: 0.0,
+                cells: vec![cell(&NONE), cell(&NONE[..4])],
+            },
+            Row {
+                noise_level: 0.225,
+                cells: vec![cell(&shifted(&NONE, 0.03)), cell(&shifted(&NONE, -0.04))],
+            },
         ],
     };
     let analysis = iso5725::analyse(&[NONE.to_vec(), shifted(&NONE, -0.04)]);
@@ -58,21 +88,50 @@ pub fn report() -> Report {
         program: "rsasim 0.1.0".into(),
         scenario: "demo_scenario".into(),
         manifest_sha256: "ab".repeat(32),
-        summary: vec!["2 beamlines, 1 detector each".into(), "Protocol: 2 noise levels × 5 runs".into()],
+        summary: vec![
+            "2 beamlines, 1 detector each".into(),
+            "Protocol: 2 noise levels × 5 runs".into(),
+        ],
         software: vec!["ExampleRSA 1.0 <beta>".into()],
         confidence: Confidence::default(),
         runs_scored: 10,
-        excluded: vec![Excluded { run: "run-0007".into(), reason: "no measured.json".into() }],
+        excluded: vec![Excluded {
+            run: "run-0007".into(),
+            reason: "no measured.json".into(),
+        }],
         tables: vec![sources, detector],
         mtpm: None,
-        group_analyses: vec![GroupAnalysis { table: "detector-det1".into(), parameter: "s".into(), unit: "mm".into(), analysis }],
+        group_analyses: vec![GroupAnalysis {
+            table: "detector-det1".into(),
+            parameter: "s".into(),
+            unit: "mm".into(),
+            analysis,
+        }],
     };
-    let sig: Vec<Significance> = report.tables[0].rows[0].cells.iter().flatten().map(|c| c.significance).collect();
-    assert_eq!(sig, [Significance::Positive, Significance::None, Significance::Negative, Significance::None]);
+    let sig: Vec<Significance> = report.tables[0].rows[0]
+        .cells
+        .iter()
+        .flatten()
+        .map(|c| c.significance)
+        .collect();
+    assert_eq!(
+        sig,
+        [
+            Significance::Positive,
+            Significance::None,
+            Significance::Negative,
+            Significance::None
+        ]
+    );
     report
 }
 
 /// Number of parameters (columns) over every table of `report`, MTPM included.
 pub fn parameters(report: &Report) -> usize {
-    report.tables.iter().chain(&report.mtpm).map(|t| t.groups.iter().map(|g| g.columns.len()).sum::<usize>()).sum()
+    report
+        .tables
+        .iter()
+        .chain(&report.mtpm)
+        .map(|t| t.groups.iter().map(|g| g.columns.len()).sum::<usize>())
+        .sum()
 }

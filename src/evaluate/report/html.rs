@@ -4,7 +4,10 @@
 use std::fmt::Write;
 
 use super::markdown::unicode_minus_numbers;
-use super::{BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, iso, mark, n_note, svg, trueness_precision, unicode_minus, usual_n};
+use super::{
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, iso, mark, n_note, svg,
+    trueness_precision, unicode_minus, usual_n,
+};
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
 
@@ -36,10 +39,23 @@ pub fn html(report: &Report) -> String {
     );
     facts(&mut s, report);
     s.push_str("<h2>Tables as in the paper</h2>\n");
-    let _ = writeln!(s, "<p class=\"legend\">Trueness ± precision per noise level. Significant cells are shaded (light red: positive, light blue: negative) and marked: {} {}</p>", esc(LEGEND), esc(N_LEGEND));
+    let _ = writeln!(
+        s,
+        "<p class=\"legend\">Trueness ± precision per noise level. Significant cells are shaded (light red: positive, light blue: negative) and marked: {} {}</p>",
+        esc(LEGEND),
+        esc(N_LEGEND)
+    );
     for (i, table) in report.tables.iter().enumerate() {
-        let _ = writeln!(s, "<section id=\"{}\">\n<h3>Table {}. {}</h3>", attr_id(&table.id), i + 1, esc(&table.caption));
-        grid(&mut s, table, &|c| (unicode_minus(&trueness_precision(c, " ± ")), c.significance));
+        let _ = writeln!(
+            s,
+            "<section id=\"{}\">\n<h3>Table {}. {}</h3>",
+            attr_id(&table.id),
+            i + 1,
+            esc(&table.caption)
+        );
+        grid(&mut s, table, &|c| {
+            (unicode_minus(&trueness_precision(c, " ± ")), c.significance)
+        });
         plots(&mut s, table);
         s.push_str("</section>\n");
     }
@@ -48,14 +64,23 @@ pub fn html(report: &Report) -> String {
         let _ = writeln!(s, "<h3>{}</h3>\n<p>{}</p>", esc(heading), esc(explanation));
         for table in &report.tables {
             let _ = writeln!(s, "<h4>{}</h4>", esc(&table.caption));
-            grid(&mut s, table, &|c| (unicode_minus(&text(c)), Significance::None));
+            grid(&mut s, table, &|c| {
+                (unicode_minus(&text(c)), Significance::None)
+            });
         }
     }
     s.push_str("<h3>MTPM</h3>\n");
     match &report.mtpm {
         Some(t) => {
-            let _ = writeln!(s, "<section id=\"{}\">\n<p>{}. Maximum total point motion over each model's beads.</p>", attr_id(&t.id), esc(&t.caption));
-            grid(&mut s, t, &|c| (unicode_minus(&trueness_precision(c, " ± ")), c.significance));
+            let _ = writeln!(
+                s,
+                "<section id=\"{}\">\n<p>{}. Maximum total point motion over each model's beads.</p>",
+                attr_id(&t.id),
+                esc(&t.caption)
+            );
+            grid(&mut s, t, &|c| {
+                (unicode_minus(&trueness_precision(c, " ± ")), c.significance)
+            });
             plots(&mut s, t);
             s.push_str("</section>\n");
         }
@@ -68,12 +93,19 @@ pub fn html(report: &Report) -> String {
 
 /// Program, data set, software, confidence, runs, scenario summary and excluded runs.
 fn facts(s: &mut String, r: &Report) {
-    let software = if r.software.is_empty() { "(not named)".to_string() } else { r.software.join(", ") };
+    let software = if r.software.is_empty() {
+        "(not named)".to_string()
+    } else {
+        r.software.join(", ")
+    };
     s.push_str("<table class=\"facts\"><tbody>\n");
     for (k, v) in [
         ("Scenario", esc(&r.scenario)),
         ("Program", esc(&r.program)),
-        ("Manifest SHA-256", format!("<code>{}</code>", esc(&r.manifest_sha256))),
+        (
+            "Manifest SHA-256",
+            format!("<code>{}</code>", esc(&r.manifest_sha256)),
+        ),
         ("Software under test", esc(&software)),
         ("Confidence", esc(&confidence_text(&r.confidence))),
         ("Runs scored", r.runs_scored.to_string()),
@@ -94,7 +126,12 @@ fn facts(s: &mut String, r: &Report) {
     } else {
         s.push_str("<table><thead><tr><th>Run</th><th>Reason</th></tr></thead><tbody>\n");
         for e in &r.excluded {
-            let _ = writeln!(s, "<tr><td>{}</td><td>{}</td></tr>", esc(&e.run), esc(&e.reason));
+            let _ = writeln!(
+                s,
+                "<tr><td>{}</td><td>{}</td></tr>",
+                esc(&e.run),
+                esc(&e.reason)
+            );
         }
         s.push_str("</tbody></table>\n");
     }
@@ -104,19 +141,32 @@ fn facts(s: &mut String, r: &Report) {
 fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Significance)) {
     s.push_str("<table><thead>\n<tr><th rowspan=\"2\">Noise</th><th rowspan=\"2\">N</th>");
     for g in &table.groups {
-        let _ = write!(s, "<th colspan=\"{}\" class=\"gs\">{}</th>", g.columns.len(), esc(&g.label));
+        let _ = write!(
+            s,
+            "<th colspan=\"{}\" class=\"gs\">{}</th>",
+            g.columns.len(),
+            esc(&g.label)
+        );
     }
     s.push_str("</tr>\n<tr>");
     let firsts = group_starts(table);
     for (i, (_, c)) in columns(table).enumerate() {
-        let class = if firsts.contains(&i) { " class=\"gs\"" } else { "" };
+        let class = if firsts.contains(&i) {
+            " class=\"gs\""
+        } else {
+            ""
+        };
         let _ = write!(s, "<th{class}>{} ({})</th>", label(&c.label), esc(&c.unit));
     }
     s.push_str("</tr>\n</thead><tbody>\n");
     for row in &table.rows {
         let usual = usual_n(row);
         let n = usual.map_or("—".to_string(), |n| n.to_string());
-        let _ = write!(s, "<tr><th>{}</th><td>{n}</td>", esc(&format_noise(row.noise_level)));
+        let _ = write!(
+            s,
+            "<tr><th>{}</th><td>{n}</td>",
+            esc(&format_noise(row.noise_level))
+        );
         for (i, c) in row.cells.iter().enumerate() {
             let mut classes: Vec<&str> = Vec::new();
             let body = match c {
@@ -141,7 +191,11 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
             if firsts.contains(&i) {
                 classes.push("gs");
             }
-            let class = if classes.is_empty() { String::new() } else { format!(" class=\"{}\"", classes.join(" ")) };
+            let class = if classes.is_empty() {
+                String::new()
+            } else {
+                format!(" class=\"{}\"", classes.join(" "))
+            };
             let _ = write!(s, "<td{class}>{body}</td>");
         }
         s.push_str("</tr>\n");
@@ -165,8 +219,16 @@ fn plots(s: &mut String, table: &Table) {
     let levels: Vec<f64> = table.rows.iter().map(|r| r.noise_level).collect();
     s.push_str("<div class=\"plots\">\n");
     for (i, (g, c)) in columns(table).enumerate() {
-        let cells: Vec<Option<&Cell>> = table.rows.iter().map(|r| r.cells.get(i).and_then(Option::as_ref)).collect();
-        let title = if g.label.is_empty() { c.label.clone() } else { format!("{} · {}", g.label, c.label) };
+        let cells: Vec<Option<&Cell>> = table
+            .rows
+            .iter()
+            .map(|r| r.cells.get(i).and_then(Option::as_ref))
+            .collect();
+        let title = if g.label.is_empty() {
+            c.label.clone()
+        } else {
+            format!("{} · {}", g.label, c.label)
+        };
         let _ = writeln!(
             s,
             "<figure>{}<figcaption>{} ({}): trueness ± precision against noise level</figcaption></figure>",
@@ -211,14 +273,25 @@ reproducibility s_R, limits r = 2.8·s_r and R = 2.8·s_R, and a one-way ANOVA o
 /// A parameter label with its first `_` as a subscript: `α_r` → `α<sub>r</sub>`.
 fn label(text: &str) -> String {
     match text.split_once('_') {
-        Some((base, sub)) if !base.is_empty() && !sub.is_empty() => format!("{}<sub>{}</sub>", esc(base), esc(sub)),
+        Some((base, sub)) if !base.is_empty() && !sub.is_empty() => {
+            format!("{}<sub>{}</sub>", esc(base), esc(sub))
+        }
         _ => esc(text),
     }
 }
 
 /// An `id` attribute value: letters, digits, `-`, `_` kept, anything else as `-`.
 fn attr_id(id: &str) -> String {
-    let id: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect();
+    let id: String = id
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect();
     format!("table-{id}")
 }
 

@@ -64,7 +64,11 @@ pub(crate) fn fields(g: &GroupAnalysis) -> Vec<Field> {
         f("Parameter", "parameter", Value::Text(g.parameter.clone())),
         f("Unit", "unit", Value::Text(g.unit.clone())),
         f("Levels", "groups", Value::Int(a.groups)),
-        f("N per level", "n_per_group", Value::Ints(a.n_per_group.clone())),
+        f(
+            "N per level",
+            "n_per_group",
+            Value::Ints(a.n_per_group.clone()),
+        ),
         f("Grand mean", "grand_mean", Value::Num(a.grand_mean)),
         f("s_r", "s_r", Value::Num(a.s_r)),
         f("s_L", "s_L", Value::Num(a.s_l)),
@@ -86,20 +90,66 @@ pub(crate) fn fields(g: &GroupAnalysis) -> Vec<Field> {
             f("p", "p_value", Value::None),
         ]),
     }
-    out.push(f("Noise changes result? (5 %)", "noise_changes_result", Value::Text(verdict(g).into())));
+    out.push(f(
+        "Noise changes result? (5 %)",
+        "noise_changes_result",
+        Value::Text(verdict(g).into()),
+    ));
     // Outlier checks of ISO 5725-2 §7.3 on the noise-level groups.
     let tests = [
-        ("Cochran C", "cochran", "Cochran verdict", "cochran_verdict", &a.cochran),
-        ("Grubbs G (means)", "grubbs", "Grubbs verdict", "grubbs_verdict", &a.grubbs),
+        (
+            "Cochran C",
+            "cochran",
+            "Cochran verdict",
+            "cochran_verdict",
+            &a.cochran,
+        ),
+        (
+            "Grubbs G (means)",
+            "grubbs",
+            "Grubbs verdict",
+            "grubbs_verdict",
+            &a.grubbs,
+        ),
     ];
     for (label, key, verdict_label, verdict_key, test) in tests {
-        out.push(f(label, key, test.as_ref().map_or(Value::None, |t| Value::Num(t.statistic))));
-        out.push(f(verdict_label, verdict_key, test.as_ref().map_or(Value::None, |t| Value::Text(outlier_text(t)))));
+        out.push(f(
+            label,
+            key,
+            test.as_ref()
+                .map_or(Value::None, |t| Value::Num(t.statistic)),
+        ));
+        out.push(f(
+            verdict_label,
+            verdict_key,
+            test.as_ref()
+                .map_or(Value::None, |t| Value::Text(outlier_text(t))),
+        ));
     }
     let h_max = a.mandel_h.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let k_max = a.mandel_k.iter().filter(|x| x.is_finite()).fold(0.0f64, |m, x| m.max(*x));
-    out.push(f("max |Mandel h|", "mandel_h_max", if a.mandel_h.is_empty() { Value::None } else { Value::Num(h_max) }));
-    out.push(f("max Mandel k", "mandel_k_max", if a.mandel_k.is_empty() { Value::None } else { Value::Num(k_max) }));
+    let k_max = a
+        .mandel_k
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold(0.0f64, |m, x| m.max(*x));
+    out.push(f(
+        "max |Mandel h|",
+        "mandel_h_max",
+        if a.mandel_h.is_empty() {
+            Value::None
+        } else {
+            Value::Num(h_max)
+        },
+    ));
+    out.push(f(
+        "max Mandel k",
+        "mandel_k_max",
+        if a.mandel_k.is_empty() {
+            Value::None
+        } else {
+            Value::Num(k_max)
+        },
+    ));
     out
 }
 

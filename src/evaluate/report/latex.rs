@@ -17,8 +17,17 @@ use crate::evaluate::table::{Report, Table};
 pub fn latex(report: &Report) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "% RSA accuracy tables: {}", comment(&report.scenario));
-    let _ = writeln!(s, "% Written by {}; manifest SHA-256 {}", comment(&report.program), comment(&report.manifest_sha256));
-    let _ = writeln!(s, "% Precision: {}", comment(&confidence_text(&report.confidence)));
+    let _ = writeln!(
+        s,
+        "% Written by {}; manifest SHA-256 {}",
+        comment(&report.program),
+        comment(&report.manifest_sha256)
+    );
+    let _ = writeln!(
+        s,
+        "% Precision: {}",
+        comment(&confidence_text(&report.confidence))
+    );
     s.push_str("% Preamble needs:\n");
     s.push_str("%   \\usepackage[table]{xcolor}   % \\cellcolor for significant cells\n");
     s.push_str("%   \\usepackage[utf8]{inputenc}  % only for pdfLaTeX before 2018\n");
@@ -30,14 +39,23 @@ pub fn latex(report: &Report) -> String {
 }
 
 fn table_float(s: &mut String, table: &Table) {
-    let spec: Vec<String> = table.groups.iter().map(|g| "c".repeat(g.columns.len())).collect();
+    let spec: Vec<String> = table
+        .groups
+        .iter()
+        .map(|g| "c".repeat(g.columns.len()))
+        .collect();
     s.push_str("\\begin{table*}[h]\n\t\\centering\n");
     let _ = writeln!(s, "\t\\begin{{tabular}}{{r|{}}}", spec.join("|"));
     s.push('\t');
     let last = table.groups.len().saturating_sub(1);
     for (i, g) in table.groups.iter().enumerate() {
         let bar = if i < last { "|" } else { "" };
-        let _ = write!(s, " & \\multicolumn{{{}}}{{c{bar}}}{{{}}}", g.columns.len(), text(&g.label));
+        let _ = write!(
+            s,
+            " & \\multicolumn{{{}}}{{c{bar}}}{{{}}}",
+            g.columns.len(),
+            text(&g.label)
+        );
     }
     s.push_str(" \\\\\n\tNoise");
     for (_, c) in columns(table) {
@@ -48,14 +66,27 @@ fn table_float(s: &mut String, table: &Table) {
         let usual = usual_n(row);
         let _ = write!(s, "\t{}", text(&format_noise(row.noise_level)));
         for c in &row.cells {
-            let _ = write!(s, " & {}", c.as_ref().map_or("--".to_string(), |c| cell(c, usual)));
+            let _ = write!(
+                s,
+                " & {}",
+                c.as_ref().map_or("--".to_string(), |c| cell(c, usual))
+            );
         }
         s.push_str(" \\\\\n");
     }
     s.push_str("\t\\hline\\hline\n\t\\end{tabular}\n");
     let caption = text(&table.caption);
-    let stop = if caption.ends_with(['.', '!', '?']) { "" } else { "." };
-    let _ = writeln!(s, "\t\\caption{{\\label{{tab:{}}}{caption}{stop} {}}}", label(&table.id), n_caption(table));
+    let stop = if caption.ends_with(['.', '!', '?']) {
+        ""
+    } else {
+        "."
+    };
+    let _ = writeln!(
+        s,
+        "\t\\caption{{\\label{{tab:{}}}{caption}{stop} {}}}",
+        label(&table.id),
+        n_caption(table)
+    );
     s.push_str("\\end{table*}\n\n");
 }
 
@@ -75,10 +106,16 @@ fn n_caption(table: &Table) -> String {
     let ns: Vec<Option<usize>> = table.rows.iter().map(usual_n).collect();
     let shown = |n: Option<usize>| n.map_or("--".to_string(), |n| n.to_string());
     let sentence = match ns.first() {
-        Some(first) if ns.iter().all(|n| n == first) => format!("$N = {}$ per noise level.", shown(*first)),
+        Some(first) if ns.iter().all(|n| n == first) => {
+            format!("$N = {}$ per noise level.", shown(*first))
+        }
         _ => {
-            let parts: Vec<String> =
-                table.rows.iter().zip(&ns).map(|(r, n)| format!("{}: {}", text(&format_noise(r.noise_level)), shown(*n))).collect();
+            let parts: Vec<String> = table
+                .rows
+                .iter()
+                .zip(&ns)
+                .map(|(r, n)| format!("{}: {}", text(&format_noise(r.noise_level)), shown(*n)))
+                .collect();
             format!("$N$ per noise level: {}.", parts.join(", "))
         }
     };
@@ -116,7 +153,15 @@ pub(crate) fn text(s: &str) -> String {
 
 /// A `\label` key: letters, digits, `-`, `.` and `:` kept, anything else as `-`.
 fn label(id: &str) -> String {
-    id.chars().map(|c| if c.is_ascii_alphanumeric() || "-.:".contains(c) { c } else { '-' }).collect()
+    id.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "-.:".contains(c) {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect()
 }
 
 /// Text for a `%` comment: one line.
@@ -160,7 +205,10 @@ mod tests {
         assert_eq!(tex.matches("\\cellcolor{red!25}").count(), 1);
         assert_eq!(tex.matches("\\cellcolor{blue!25}").count(), 1);
         assert!(tex.contains("\\cellcolor{red!25}$1.0 \\pm 0.15$"), "{tex}");
-        assert!(tex.contains("\\cellcolor{blue!25}$-0.50 \\pm 0.075$"), "{tex}");
+        assert!(
+            tex.contains("\\cellcolor{blue!25}$-0.50 \\pm 0.075$"),
+            "{tex}"
+        );
         assert!(tex.contains("$0.30$~(N=1)"));
         assert!(tex.contains("\\begin{tabular}{r|cc|cc}"));
         assert!(tex.contains(" & \\multicolumn{2}{c|}{tube1} & \\multicolumn{2}{c}{tube2} \\\\"));
@@ -169,7 +217,10 @@ mod tests {
         assert!(tex.contains("\\label{tab:detector-det1}"));
         assert!(tex.contains("\\usepackage[table]{xcolor}"));
         assert!(balanced(&tex));
-        assert_eq!(tex.matches("\\begin{table*}").count(), tex.matches("\\end{table*}").count());
+        assert_eq!(
+            tex.matches("\\begin{table*}").count(),
+            tex.matches("\\end{table*}").count()
+        );
     }
 
     #[test]

@@ -3,7 +3,10 @@
 use std::fmt::Write;
 
 use super::iso;
-use super::{BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, mark, n_note, trueness_precision, unicode_minus, usual_n};
+use super::{
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, mark, n_note,
+    trueness_precision, unicode_minus, usual_n,
+};
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
 
@@ -16,24 +19,47 @@ pub fn markdown(report: &Report) -> String {
     let mut s = String::new();
     header(&mut s, report);
     s.push_str("## Tables as in the paper\n\n");
-    let _ = writeln!(s, "Trueness ± precision per noise level. {LEGEND} {N_LEGEND}\n");
+    let _ = writeln!(
+        s,
+        "Trueness ± precision per noise level. {LEGEND} {N_LEGEND}\n"
+    );
     for (i, table) in report.tables.iter().enumerate() {
-        let _ = writeln!(s, "### Table {} (`{}`). {}\n", i + 1, table.id.replace('`', "'"), esc(&table.caption));
+        let _ = writeln!(
+            s,
+            "### Table {} (`{}`). {}\n",
+            i + 1,
+            table.id.replace('`', "'"),
+            esc(&table.caption)
+        );
         grid(&mut s, table, &|c| paper_cell(c));
     }
     s.push_str("## Beyond the paper\n\n");
-    s.push_str("These sections are not in Bontempi et al.; they are computed from the same residuals.\n\n");
+    s.push_str(
+        "These sections are not in Bontempi et al.; they are computed from the same residuals.\n\n",
+    );
     for (heading, explanation, text) in BEYOND {
         let _ = writeln!(s, "### {heading}\n\n{}\n", esc(explanation));
         for (i, table) in report.tables.iter().enumerate() {
-            let _ = writeln!(s, "#### Table {} (`{}`): {}\n", i + 1, table.id.replace('`', "'"), heading.to_lowercase());
-            grid(&mut s, table, &|c| (unicode_minus(&text(c)), Significance::None));
+            let _ = writeln!(
+                s,
+                "#### Table {} (`{}`): {}\n",
+                i + 1,
+                table.id.replace('`', "'"),
+                heading.to_lowercase()
+            );
+            grid(&mut s, table, &|c| {
+                (unicode_minus(&text(c)), Significance::None)
+            });
         }
     }
     s.push_str("### MTPM\n\n");
     match &report.mtpm {
         Some(t) => {
-            let _ = writeln!(s, "{}. Maximum total point motion over each model's beads.\n", esc(&t.caption));
+            let _ = writeln!(
+                s,
+                "{}. Maximum total point motion over each model's beads.\n",
+                esc(&t.caption)
+            );
             grid(&mut s, t, &|c| paper_cell(c));
         }
         None => s.push_str("No MTPM table (no model with beads was scored).\n\n"),
@@ -45,12 +71,24 @@ pub fn markdown(report: &Report) -> String {
 /// The title and the facts that identify the data set and the scoring.
 fn header(s: &mut String, r: &Report) {
     let _ = writeln!(s, "# RSA accuracy report: {}\n", esc(&r.scenario));
-    let software = if r.software.is_empty() { "(not named)".to_string() } else { r.software.join(", ") };
+    let software = if r.software.is_empty() {
+        "(not named)".to_string()
+    } else {
+        r.software.join(", ")
+    };
     let _ = writeln!(s, "- **Scenario:** {}", esc(&r.scenario));
     let _ = writeln!(s, "- **Program:** {}", esc(&r.program));
-    let _ = writeln!(s, "- **Manifest SHA-256:** `{}`", r.manifest_sha256.replace('`', "'"));
+    let _ = writeln!(
+        s,
+        "- **Manifest SHA-256:** `{}`",
+        r.manifest_sha256.replace('`', "'")
+    );
     let _ = writeln!(s, "- **Software under test:** {}", esc(&software));
-    let _ = writeln!(s, "- **Confidence:** {}", esc(&confidence_text(&r.confidence)));
+    let _ = writeln!(
+        s,
+        "- **Confidence:** {}",
+        esc(&confidence_text(&r.confidence))
+    );
     let _ = writeln!(s, "- **Runs scored:** {}\n", r.runs_scored);
     if !r.summary.is_empty() {
         s.push_str("## Scenario\n\n");
@@ -80,7 +118,11 @@ fn paper_cell(c: &Cell) -> (String, Significance) {
 fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Significance)) {
     s.push_str("| Noise | N |");
     for (g, c) in columns(table) {
-        let group = if g.label.is_empty() { String::new() } else { format!("{}: ", esc(&g.label)) };
+        let group = if g.label.is_empty() {
+            String::new()
+        } else {
+            format!("{}: ", esc(&g.label))
+        };
         let _ = write!(s, " {group}{} ({}) |", esc(&c.label), esc(&c.unit));
     }
     s.push_str("\n|---:|---:|");
@@ -91,7 +133,12 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
         let n = usual.map_or("—".to_string(), |n| n.to_string());
         let _ = write!(s, "| {} | {n} |", format_noise(row.noise_level));
         for c in &row.cells {
-            let _ = write!(s, " {} |", c.as_ref().map_or("—".to_string(), |c| cell_text(c, usual, cell)));
+            let _ = write!(
+                s,
+                " {} |",
+                c.as_ref()
+                    .map_or("—".to_string(), |c| cell_text(c, usual, cell))
+            );
         }
         s.push('\n');
     }
@@ -99,9 +146,17 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
 }
 
 /// One cell's Markdown: bold and marked when significant, with its N note.
-fn cell_text(c: &Cell, usual: Option<usize>, cell: &dyn Fn(&Cell) -> (String, Significance)) -> String {
+fn cell_text(
+    c: &Cell,
+    usual: Option<usize>,
+    cell: &dyn Fn(&Cell) -> (String, Significance),
+) -> String {
     let (text, sig) = cell(c);
-    let mut out = if sig == Significance::None { text } else { format!("**{text}** {}", mark(sig)) };
+    let mut out = if sig == Significance::None {
+        text
+    } else {
+        format!("**{text}** {}", mark(sig))
+    };
     if let Some(note) = n_note(c, usual) {
         out = format!("{out} {note}");
     }
@@ -172,12 +227,16 @@ mod tests {
     #[test]
     fn the_row_of_one_noise_level() {
         let md = markdown(&report());
-        let want = "| 0.0% | 5 | **1.0 ± 0.15** ▲ | 0 ± 0.33 | **−0.50 ± 0.075** ▼ | 0.30 (N=1) |\n";
+        let want =
+            "| 0.0% | 5 | **1.0 ± 0.15** ▲ | 0 ± 0.33 | **−0.50 ± 0.075** ▼ | 0.30 (N=1) |\n";
         assert!(md.contains(want), "{md}");
         assert!(md.contains("| Noise | N | tube1: x\\_r (mm) | tube1: y\\_c (mm) | tube2: x\\_s (mm) | tube2: y\\_r (mm) |\n"));
         assert!(md.contains("| 22.5% | 5 | 0.010 ± 0.33 | 0 ± 0.33 | −0.020 ± 0.33 | — |\n"));
         // The detector's s at 0 % has N = 4 where the row's usual N is 5.
-        assert!(md.contains("| 0.0% | 5 | 0 ± 0.33 | 0 ± 0.47 (N=4) |\n"), "{md}");
+        assert!(
+            md.contains("| 0.0% | 5 | 0 ± 0.33 | 0 ± 0.47 (N=4) |\n"),
+            "{md}"
+        );
     }
 
     #[test]
@@ -188,10 +247,19 @@ mod tests {
         assert!(md.contains("- **Confidence:** one-sided 95 % (τ = t(0.95; N−1))\n"));
         assert!(md.contains("- **Runs scored:** 10\n"));
         assert!(md.contains("| run-0007 | no measured.json |\n"));
-        for h in ["## Beyond the paper", "### Per-measurement precision", "#### Table 2 (`detector-det1`): rms error", "### MTPM", "### ISO 5725-2"] {
+        for h in [
+            "## Beyond the paper",
+            "### Per-measurement precision",
+            "#### Table 2 (`detector-det1`): rms error",
+            "### MTPM",
+            "### ISO 5725-2",
+        ] {
             assert!(md.contains(h), "{h}");
         }
-        assert!(md.contains("| 0.0% | 5 | 0.16 (±0.31) | 0.34 (±0.67) | 0.079 (±0.15) | n/a (N=1) |\n"), "{md}");
+        assert!(
+            md.contains("| 0.0% | 5 | 0.16 (±0.31) | 0.34 (±0.67) | 0.079 (±0.15) | n/a (N=1) |\n"),
+            "{md}"
+        );
         assert!(md.contains("- detector-det1 / s: no — no evidence at the 5 % level"));
         assert_eq!(esc("a|b*c_d"), "a\\|b\\*c\\_d");
     }

@@ -12,14 +12,14 @@
 //!   (negative, the paper's blue), in bold or on a coloured background.
 
 mod csv;
+#[cfg(test)]
+mod fixture;
 mod html;
 mod iso;
 mod latex;
 mod markdown;
 mod number;
 mod svg;
-#[cfg(test)]
-mod fixture;
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -94,7 +94,11 @@ pub fn render(report: &Report, format: Format) -> String {
 /// Writes `report.<ext>` into `dir` (created if missing) for each of `formats` (duplicates are
 /// written once), and `iso5725.csv` beside `report.csv` when CSV is chosen. Every file is written
 /// atomically. Returns the paths written, in order.
-pub fn write_reports(report: &Report, dir: &Path, formats: &[Format]) -> std::io::Result<Vec<PathBuf>> {
+pub fn write_reports(
+    report: &Report,
+    dir: &Path,
+    formats: &[Format],
+) -> std::io::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)?;
     let mut written = Vec::new();
     let mut done = Vec::new();
@@ -117,13 +121,18 @@ pub fn write_reports(report: &Report, dir: &Path, formats: &[Format]) -> std::io
 
 /// The columns of `table`, left to right, each with its group.
 pub(crate) fn columns(table: &Table) -> impl Iterator<Item = (&ColumnGroup, &Column)> {
-    table.groups.iter().flat_map(|g| g.columns.iter().map(move |c| (g, c)))
+    table
+        .groups
+        .iter()
+        .flat_map(|g| g.columns.iter().map(move |c| (g, c)))
 }
 
 /// The most frequent N among the row's cells (ties: the larger); `None` for a row without cells.
 pub(crate) fn usual_n(row: &Row) -> Option<usize> {
     let ns: Vec<usize> = row.cells.iter().flatten().map(|c| c.n).collect();
-    ns.iter().copied().max_by_key(|&n| (ns.iter().filter(|&&m| m == n).count(), n))
+    ns.iter()
+        .copied()
+        .max_by_key(|&n| (ns.iter().filter(|&&m| m == n).count(), n))
 }
 
 /// The "(N=k)" note a cell carries: when its precision is undefined or its N is not the row's.
@@ -136,7 +145,11 @@ pub(crate) fn trueness_precision(cell: &Cell, pm: &str) -> String {
     if cell.precision.is_nan() {
         format_number(cell.trueness)
     } else {
-        format!("{}{pm}{}", format_number(cell.trueness), format_number(cell.precision))
+        format!(
+            "{}{pm}{}",
+            format_number(cell.trueness),
+            format_number(cell.precision)
+        )
     }
 }
 
@@ -145,7 +158,11 @@ pub(crate) fn sd_limits(cell: &Cell) -> String {
     if cell.sd.is_nan() {
         "n/a".into()
     } else {
-        format!("{} (±{})", format_number(cell.sd), format_number(cell.limits_95()))
+        format!(
+            "{} (±{})",
+            format_number(cell.sd),
+            format_number(cell.limits_95())
+        )
     }
 }
 
@@ -164,7 +181,11 @@ pub(crate) fn confidence_text(c: &Confidence) -> String {
         Sided::One => ("one-sided", c.level),
         Sided::Two => ("two-sided", (1.0 + c.level) / 2.0),
     };
-    format!("{sided} {} % (τ = t({}; N−1))", number::trimmed(c.level * 100.0, 4), number::trimmed(p, 6))
+    format!(
+        "{sided} {} % (τ = t({}; N−1))",
+        number::trimmed(c.level * 100.0, 4),
+        number::trimmed(p, 6)
+    )
 }
 
 /// The legend of significance marks, in words.
@@ -186,7 +207,11 @@ pub(crate) const BEYOND: [(&str, &str, CellText); 2] = [
 per-measurement 95 % limits ±1.96·s that RSA guidelines report.",
         sd_limits,
     ),
-    ("RMS error", "Each cell: the root mean square of the residuals, √(mean Δ²).", |c| format_number(c.rms)),
+    (
+        "RMS error",
+        "Each cell: the root mean square of the residuals, √(mean Δ²).",
+        |c| format_number(c.rms),
+    ),
 ];
 
 #[cfg(test)]
@@ -195,11 +220,25 @@ mod tests {
 
     #[test]
     fn formats_parse_and_name_their_extensions() {
-        for (name, f) in [("md", Format::Markdown), ("Markdown", Format::Markdown), ("csv", Format::Csv), ("tex", Format::Latex), ("LaTeX", Format::Latex), ("html", Format::Html)] {
+        for (name, f) in [
+            ("md", Format::Markdown),
+            ("Markdown", Format::Markdown),
+            ("csv", Format::Csv),
+            ("tex", Format::Latex),
+            ("LaTeX", Format::Latex),
+            ("html", Format::Html),
+        ] {
             assert_eq!(name.parse::<Format>().unwrap(), f);
         }
         let err = "pdf".parse::<Format>().unwrap_err().to_string();
-        assert!(err.contains("'pdf'") && err.contains("md") && err.contains("csv") && err.contains("tex") && err.contains("html"), "{err}");
+        assert!(
+            err.contains("'pdf'")
+                && err.contains("md")
+                && err.contains("csv")
+                && err.contains("tex")
+                && err.contains("html"),
+            "{err}"
+        );
         let exts: Vec<&str> = Format::ALL.iter().map(|f| f.extension()).collect();
         assert_eq!(exts, ["md", "csv", "tex", "html"]);
     }
@@ -210,7 +249,14 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let dir = root.path().join("eval").join("reports");
         let paths = write_reports(&r, &dir, &[Format::Html, Format::Csv, Format::Html]).unwrap();
-        assert_eq!(paths, [dir.join("report.html"), dir.join("report.csv"), dir.join("iso5725.csv")]);
+        assert_eq!(
+            paths,
+            [
+                dir.join("report.html"),
+                dir.join("report.csv"),
+                dir.join("iso5725.csv")
+            ]
+        );
         assert_eq!(std::fs::read_to_string(&paths[0]).unwrap(), html(&r));
         assert_eq!(std::fs::read_to_string(&paths[2]).unwrap(), csv_iso5725(&r));
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 3);
@@ -228,7 +274,13 @@ mod tests {
         let cells: Vec<&Cell> = row.cells.iter().flatten().collect();
         assert_eq!(n_note(cells[0], Some(5)), None);
         assert_eq!(n_note(cells[1], Some(5)).as_deref(), Some("(N=4)"));
-        assert_eq!(confidence_text(&Confidence { level: 0.95, sided: Sided::Two }), "two-sided 95 % (τ = t(0.975; N−1))");
+        assert_eq!(
+            confidence_text(&Confidence {
+                level: 0.95,
+                sided: Sided::Two
+            }),
+            "two-sided 95 % (τ = t(0.975; N−1))"
+        );
     }
 
     #[test]
@@ -246,7 +298,13 @@ mod tests {
         r.mtpm = Some(mtpm);
         assert!(markdown(&r).contains("| Noise | N | femur: MTPM (mm) |"));
         assert!(latex(&r).contains("\\label{tab:mtpm}"));
-        assert_eq!(csv(&r).lines().filter(|l| l.starts_with("mtpm,femur,MTPM,mm,")).count(), 2);
+        assert_eq!(
+            csv(&r)
+                .lines()
+                .filter(|l| l.starts_with("mtpm,femur,MTPM,mm,"))
+                .count(),
+            2
+        );
         let page = html(&r);
         assert_eq!(page.matches("<svg").count(), fixture::parameters(&r));
         assert!(page.contains("femur · MTPM"));

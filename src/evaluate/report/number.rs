@@ -23,7 +23,9 @@ pub fn format_number(x: f64) -> String {
     // Rust's `{:e}` rounds the exact binary value correctly to the requested digits; the
     // exponent it reports already accounts for rounding up to the next decade (0.0996 → 1.0e-1).
     let sci = format!("{:.1e}", x.abs());
-    let (mantissa, exponent) = sci.split_once('e').expect("scientific format has an exponent");
+    let (mantissa, exponent) = sci
+        .split_once('e')
+        .expect("scientific format has an exponent");
     let exponent: i32 = exponent.parse().expect("integer exponent");
     let digits: String = mantissa.chars().filter(char::is_ascii_digit).collect();
     let sign = if x < 0.0 { "-" } else { "" };
@@ -52,7 +54,11 @@ pub fn unicode_minus(s: &str) -> String {
 /// `x` with at most `decimals` decimals and no trailing zeros: `0.95·100` → `"95"`, `97.5`.
 pub(crate) fn trimmed(x: f64, decimals: usize) -> String {
     let s = format!("{x:.decimals$}");
-    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { &s };
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &s
+    };
     if s == "-0" { "0".into() } else { s.into() }
 }
 

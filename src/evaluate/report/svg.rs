@@ -23,7 +23,11 @@ const BLACK: &str = "#222222";
 /// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
 /// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
 pub(crate) fn plot(title: &str, unit: &str, levels: &[f64], cells: &[Option<&Cell>]) -> String {
-    let points: Vec<(f64, &Cell)> = levels.iter().zip(cells).filter_map(|(&x, c)| c.map(|c| (x, c))).collect();
+    let points: Vec<(f64, &Cell)> = levels
+        .iter()
+        .zip(cells)
+        .filter_map(|(&x, c)| c.map(|c| (x, c)))
+        .collect();
     let (x0, x1) = x_domain(levels);
     let (ticks, y0, y1) = y_ticks(&points);
     let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * (W - LEFT - RIGHT);
@@ -33,9 +37,16 @@ pub(crate) fn plot(title: &str, unit: &str, levels: &[f64], cells: &[Option<&Cel
         s,
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" \
 role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
-        esc(&format!("{title}: trueness ± precision ({unit}) against noise level"))
+        esc(&format!(
+            "{title}: trueness ± precision ({unit}) against noise level"
+        ))
     );
-    let _ = write!(s, "<text x=\"{:.2}\" y=\"16\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>", W / 2.0, esc(title));
+    let _ = write!(
+        s,
+        "<text x=\"{:.2}\" y=\"16\" text-anchor=\"middle\" font-weight=\"bold\">{}</text>",
+        W / 2.0,
+        esc(title)
+    );
     let _ = write!(
         s,
         "<rect x=\"{LEFT:.2}\" y=\"{TOP:.2}\" width=\"{:.2}\" height=\"{:.2}\" fill=\"none\" stroke=\"#999999\"/>",
@@ -44,8 +55,18 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
     );
     for (value, label) in &ticks {
         let y = py(*value);
-        let _ = write!(s, "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{LEFT:.2}\" y2=\"{y:.2}\" stroke=\"#999999\"/>", LEFT - 4.0);
-        let _ = write!(s, "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"end\">{}</text>", LEFT - 6.0, y + 4.0, esc(label));
+        let _ = write!(
+            s,
+            "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{LEFT:.2}\" y2=\"{y:.2}\" stroke=\"#999999\"/>",
+            LEFT - 4.0
+        );
+        let _ = write!(
+            s,
+            "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"end\">{}</text>",
+            LEFT - 6.0,
+            y + 4.0,
+            esc(label)
+        );
     }
     let mut seen: Vec<f64> = Vec::new();
     for &level in levels {
@@ -55,8 +76,17 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         seen.push(level);
         let x = px(level);
         let base = H - BOTTOM;
-        let _ = write!(s, "<line x1=\"{x:.2}\" y1=\"{base:.2}\" x2=\"{x:.2}\" y2=\"{:.2}\" stroke=\"#999999\"/>", base + 4.0);
-        let _ = write!(s, "<text x=\"{x:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>", base + 16.0, esc(&format_noise(level)));
+        let _ = write!(
+            s,
+            "<line x1=\"{x:.2}\" y1=\"{base:.2}\" x2=\"{x:.2}\" y2=\"{:.2}\" stroke=\"#999999\"/>",
+            base + 4.0
+        );
+        let _ = write!(
+            s,
+            "<text x=\"{x:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>",
+            base + 16.0,
+            esc(&format_noise(level))
+        );
     }
     let zero = py(0.0);
     let _ = write!(
@@ -67,7 +97,12 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
     for (level, c) in &points {
         point(&mut s, px(*level), c, &py);
     }
-    let _ = write!(s, "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">Noise level (% of I<tspan baseline-shift=\"sub\" font-size=\"8\">max</tspan>)</text>", LEFT + (W - LEFT - RIGHT) / 2.0, H - 10.0);
+    let _ = write!(
+        s,
+        "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">Noise level (% of I<tspan baseline-shift=\"sub\" font-size=\"8\">max</tspan>)</text>",
+        LEFT + (W - LEFT - RIGHT) / 2.0,
+        H - 10.0
+    );
     let (cx, cy) = (14.0, TOP + (H - TOP - BOTTOM) / 2.0);
     let _ = write!(
         s,
@@ -87,24 +122,58 @@ fn point(s: &mut String, x: f64, c: &Cell, py: &dyn Fn(f64) -> f64) {
     };
     if c.precision.is_finite() {
         let (lo, hi) = (py(c.trueness - c.precision), py(c.trueness + c.precision));
-        let _ = write!(s, "<line x1=\"{x:.2}\" y1=\"{lo:.2}\" x2=\"{x:.2}\" y2=\"{hi:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>");
+        let _ = write!(
+            s,
+            "<line x1=\"{x:.2}\" y1=\"{lo:.2}\" x2=\"{x:.2}\" y2=\"{hi:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>"
+        );
         for y in [lo, hi] {
-            let _ = write!(s, "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{:.2}\" y2=\"{y:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>", x - 5.0, x + 5.0);
+            let _ = write!(
+                s,
+                "<line x1=\"{:.2}\" y1=\"{y:.2}\" x2=\"{:.2}\" y2=\"{y:.2}\" stroke=\"{color}\" stroke-width=\"1.5\"/>",
+                x - 5.0,
+                x + 5.0
+            );
         }
     }
     let y = py(c.trueness);
     let shape = match c.significance {
-        Significance::Positive => format!("<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"", y - 5.0, x + 5.0, y + 4.0, x - 5.0, y + 4.0),
-        Significance::Negative => format!("<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"", y + 5.0, x + 5.0, y - 4.0, x - 5.0, y - 4.0),
+        Significance::Positive => format!(
+            "<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"",
+            y - 5.0,
+            x + 5.0,
+            y + 4.0,
+            x - 5.0,
+            y + 4.0
+        ),
+        Significance::Negative => format!(
+            "<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"",
+            y + 5.0,
+            x + 5.0,
+            y - 4.0,
+            x - 5.0,
+            y - 4.0
+        ),
         Significance::None => format!("<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"3.5\""),
     };
-    let _ = write!(s, "{shape} fill=\"{color}\"><title>{}</title></", esc(&tooltip(c)));
-    s.push_str(if c.significance == Significance::None { "circle>" } else { "path>" });
+    let _ = write!(
+        s,
+        "{shape} fill=\"{color}\"><title>{}</title></",
+        esc(&tooltip(c))
+    );
+    s.push_str(if c.significance == Significance::None {
+        "circle>"
+    } else {
+        "path>"
+    });
 }
 
 /// The hover text of a point: "T ± P (N=k)".
 fn tooltip(c: &Cell) -> String {
-    unicode_minus(&format!("{} (N={})", super::trueness_precision(c, " ± "), c.n))
+    unicode_minus(&format!(
+        "{} (N={})",
+        super::trueness_precision(c, " ± "),
+        c.n
+    ))
 }
 
 /// The x range: the noise levels, padded by 8 % (±0.1 around a single level).
@@ -124,7 +193,11 @@ fn y_ticks(points: &[(f64, &Cell)]) -> (Vec<(f64, String)>, f64, f64) {
     let mut lo: f64 = 0.0;
     let mut hi: f64 = 0.0;
     for (_, c) in points {
-        let p = if c.precision.is_finite() { c.precision } else { 0.0 };
+        let p = if c.precision.is_finite() {
+            c.precision
+        } else {
+            0.0
+        };
         for v in [c.trueness - p, c.trueness + p] {
             if v.is_finite() {
                 lo = lo.min(v);
@@ -140,13 +213,21 @@ fn y_ticks(points: &[(f64, &Cell)]) -> (Vec<(f64, String)>, f64, f64) {
     (lo, hi) = (lo - pad, hi + pad);
     let raw = (hi - lo) / 4.0;
     let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0].into_iter().map(|m| m * mag).find(|&s| s >= raw).unwrap_or(10.0 * mag);
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * mag)
+        .find(|&s| s >= raw)
+        .unwrap_or(10.0 * mag);
     let (i0, i1) = ((lo / step).floor() as i64, (hi / step).ceil() as i64);
     let decimals = (-step.log10().floor()).max(0.0) as usize;
     let ticks = (i0..=i1)
         .map(|i| {
             let v = i as f64 * step;
-            let label = if i == 0 { "0".to_string() } else { unicode_minus(&format!("{v:.decimals$}")) };
+            let label = if i == 0 {
+                "0".to_string()
+            } else {
+                unicode_minus(&format!("{v:.decimals$}"))
+            };
             (v, label)
         })
         .collect();
@@ -171,8 +252,21 @@ mod tests {
     fn a_plot_is_deterministic_and_marks_significance() {
         let pos = Cell::from_residuals(&[1.0, 1.1, 0.9], &Confidence::default());
         let one = Cell::from_residuals(&[0.2], &Confidence::default());
-        let svg = plot("tube1 · x_r", "mm", &[0.0, 0.225, 0.45], &[Some(&pos), None, Some(&one)]);
-        assert_eq!(svg, plot("tube1 · x_r", "mm", &[0.0, 0.225, 0.45], &[Some(&pos), None, Some(&one)]));
+        let svg = plot(
+            "tube1 · x_r",
+            "mm",
+            &[0.0, 0.225, 0.45],
+            &[Some(&pos), None, Some(&one)],
+        );
+        assert_eq!(
+            svg,
+            plot(
+                "tube1 · x_r",
+                "mm",
+                &[0.0, 0.225, 0.45],
+                &[Some(&pos), None, Some(&one)]
+            )
+        );
         assert_eq!(svg.matches("<path").count(), 1);
         assert_eq!(svg.matches("<circle").count(), 1);
         assert!(svg.contains(">22.5%</text>") && svg.contains("T ± P (mm)"));

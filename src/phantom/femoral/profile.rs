@@ -66,7 +66,10 @@ impl Polygon {
 
     /// Largest `n · p` over the vertices (the support function of the polygon).
     pub fn support(&self, n: [f64; 2]) -> f64 {
-        self.0.iter().map(|p| n[0] * p[0] + n[1] * p[1]).fold(f64::NEG_INFINITY, f64::max)
+        self.0
+            .iter()
+            .map(|p| n[0] * p[0] + n[1] * p[1])
+            .fold(f64::NEG_INFINITY, f64::max)
     }
 }
 
@@ -104,10 +107,31 @@ pub fn outer_contour() -> Polygon {
     let (c_post, c_ant) = arc_centres();
     let top_of_arc = add(c_post, R_POST, dir(180.0 - POST_LEAN_DEG));
     let lean = dir(90.0 - POST_LEAN_DEG);
-    let mut v = vec![add(top_of_arc, (Y_FAR - top_of_arc[1]) / lean[1], lean), top_of_arc];
-    arc(&mut v, c_post, R_POST, 180.0 - POST_LEAN_DEG, 270.0 - POST_HANDOVER_DEG);
-    arc(&mut v, C_DIST, R_DIST, 270.0 - POST_HANDOVER_DEG, 270.0 + ANT_HANDOVER_DEG);
-    arc(&mut v, c_ant, R_ANT, 270.0 + ANT_HANDOVER_DEG, 360.0 + FLANGE_TILT_DEG);
+    let mut v = vec![
+        add(top_of_arc, (Y_FAR - top_of_arc[1]) / lean[1], lean),
+        top_of_arc,
+    ];
+    arc(
+        &mut v,
+        c_post,
+        R_POST,
+        180.0 - POST_LEAN_DEG,
+        270.0 - POST_HANDOVER_DEG,
+    );
+    arc(
+        &mut v,
+        C_DIST,
+        R_DIST,
+        270.0 - POST_HANDOVER_DEG,
+        270.0 + ANT_HANDOVER_DEG,
+    );
+    arc(
+        &mut v,
+        c_ant,
+        R_ANT,
+        270.0 + ANT_HANDOVER_DEG,
+        360.0 + FLANGE_TILT_DEG,
+    );
     let tangent = *v.last().unwrap_or(&c_ant);
     let up = dir(90.0 + FLANGE_TILT_DEG);
     v.push(add(tangent, (Y_FAR - tangent[1]) / up[1], up));
@@ -117,7 +141,13 @@ pub fn outer_contour() -> Polygon {
 /// Outward normals (from the bone into the metal) of the five cuts: anterior, anterior chamfer,
 /// distal, posterior chamfer, posterior.
 pub fn cut_normals() -> [[f64; 2]; 5] {
-    [dir(FLANGE_TILT_DEG), [FRAC_1_SQRT_2, -FRAC_1_SQRT_2], [0.0, -1.0], [-FRAC_1_SQRT_2, -FRAC_1_SQRT_2], [-1.0, 0.0]]
+    [
+        dir(FLANGE_TILT_DEG),
+        [FRAC_1_SQRT_2, -FRAC_1_SQRT_2],
+        [0.0, -1.0],
+        [-FRAC_1_SQRT_2, -FRAC_1_SQRT_2],
+        [-1.0, 0.0],
+    ]
 }
 
 /// The bone cuts as lines `n · p = c` (normal, offset), with the metal on the side `n · p > c`.
@@ -132,13 +162,23 @@ pub fn bone_box(outer: &Polygon, inset: f64) -> Polygon {
     let cuts = cut_planes(outer);
     // Counter-clockwise by normal angle: anterior, top, posterior, posterior chamfer, distal,
     // anterior chamfer.
-    let lines = [cuts[0], ([0.0, 1.0], Y_FAR), cuts[4], cuts[3], cuts[2], cuts[1]];
+    let lines = [
+        cuts[0],
+        ([0.0, 1.0], Y_FAR),
+        cuts[4],
+        cuts[3],
+        cuts[2],
+        cuts[1],
+    ];
     let corners = (0..lines.len())
         .map(|i| {
             let ((n1, c1), (n2, c2)) = (lines[i], lines[(i + 1) % lines.len()]);
             let (c1, c2) = (c1 - inset, c2 - inset);
             let det = n1[0] * n2[1] - n1[1] * n2[0];
-            [(c1 * n2[1] - c2 * n1[1]) / det, (n1[0] * c2 - n2[0] * c1) / det]
+            [
+                (c1 * n2[1] - c2 * n1[1]) / det,
+                (n1[0] * c2 - n2[0] * c1) / det,
+            ]
         })
         .collect();
     Polygon(corners)
@@ -168,12 +208,21 @@ mod tests {
         let outer = outer_contour();
         let z_min = -outer.support([-1.0, 0.0]);
         let z_max = outer.support([1.0, 0.0]);
-        assert!((55.0..=62.0).contains(&(z_max - z_min)), "AP {z_min}..{z_max}");
-        assert!(outer.support([0.0, -1.0]).abs() < 1e-9, "lowest point must be at y = 0");
+        assert!(
+            (55.0..=62.0).contains(&(z_max - z_min)),
+            "AP {z_min}..{z_max}"
+        );
+        assert!(
+            outer.support([0.0, -1.0]).abs() < 1e-9,
+            "lowest point must be at y = 0"
+        );
         // No kinks: consecutive edge directions turn by less than 2° everywhere but the top.
         let v = &outer.0;
         for w in v[1..v.len() - 1].windows(3) {
-            let (a, b) = ([w[1][0] - w[0][0], w[1][1] - w[0][1]], [w[2][0] - w[1][0], w[2][1] - w[1][1]]);
+            let (a, b) = (
+                [w[1][0] - w[0][0], w[1][1] - w[0][1]],
+                [w[2][0] - w[1][0], w[2][1] - w[1][1]],
+            );
             let cross = a[0] * b[1] - a[1] * b[0];
             let dot = a[0] * b[0] + a[1] * b[1];
             let turn = libm::atan2(cross, dot).to_degrees();
@@ -193,7 +242,11 @@ mod tests {
         }
         // Every bone corner below the caps is at least 6 mm inside the outer contour.
         for p in v.iter().filter(|p| p[1] < 60.0) {
-            assert!(outer.sdf(*p) < -6.0, "corner {p:?} has {} mm of metal", -outer.sdf(*p));
+            assert!(
+                outer.sdf(*p) < -6.0,
+                "corner {p:?} has {} mm of metal",
+                -outer.sdf(*p)
+            );
         }
     }
 

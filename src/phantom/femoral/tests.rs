@@ -104,9 +104,13 @@ fn mesh_is_closed_outward_genus_zero_and_connected() {
     let m = &component().mesh;
     m.check_closed().unwrap();
     let volume = m.signed_volume_mm3();
-    assert!((25_000.0..60_000.0).contains(&volume), "volume {volume} mm³");
+    assert!(
+        (25_000.0..60_000.0).contains(&volume),
+        "volume {volume} mm³"
+    );
     // Euler characteristic V − E + F = 2 for one closed genus-0 surface (E = 3F/2).
-    let chi = m.vertices.len() as i64 - (3 * m.triangles.len() / 2) as i64 + m.triangles.len() as i64;
+    let chi =
+        m.vertices.len() as i64 - (3 * m.triangles.len() / 2) as i64 + m.triangles.len() as i64;
     assert_eq!(chi, 2, "Euler characteristic");
     // One connected piece (union-find over triangle vertices).
     let mut parent: Vec<u32> = (0..m.vertices.len() as u32).collect();
@@ -123,7 +127,9 @@ fn mesh_is_closed_outward_genus_zero_and_connected() {
             parent[ra as usize] = rb;
         }
     }
-    let roots = (0..m.vertices.len() as u32).filter(|&i| find(&mut parent, i) == i).count();
+    let roots = (0..m.vertices.len() as u32)
+        .filter(|&i| find(&mut parent, i) == i)
+        .count();
     assert_eq!(roots, 1, "connected components");
 }
 
@@ -132,19 +138,43 @@ fn size_frame_and_triangle_count_are_in_range() {
     let m = &component().mesh;
     let (lo, hi) = m.bounds_mm();
     let size = hi - lo;
-    assert!((60.0..=75.0).contains(&size.x) && (size.x - 68.0).abs() < 2.0, "ML {size}");
+    assert!(
+        (60.0..=75.0).contains(&size.x) && (size.x - 68.0).abs() < 2.0,
+        "ML {size}"
+    );
     assert!((55.0..=65.0).contains(&size.z), "AP {size}");
     assert!((50.0..=60.0).contains(&size.y), "PD {size}");
-    assert!(((lo + hi) * 0.5).length() < 1e-4, "origin must be the bounding-box centre: {lo} {hi}");
-    assert!((5_000..=100_000).contains(&m.triangles.len()), "{} triangles", m.triangles.len());
+    assert!(
+        ((lo + hi) * 0.5).length() < 1e-4,
+        "origin must be the bounding-box centre: {lo} {hi}"
+    );
+    assert!(
+        (5_000..=100_000).contains(&m.triangles.len()),
+        "{} triangles",
+        m.triangles.len()
+    );
     // The anterior flange is at +z and reaches highest (+y); the notch leaves x = 0 open at the back.
-    let top: Vec<DVec3> = (0..m.vertices.len() as u32).map(|i| vertex(m, i)).filter(|p| p.y > hi.y - 1.0).collect();
-    assert!(top.iter().all(|p| p.z > 0.0), "the flange top must be anterior");
+    let top: Vec<DVec3> = (0..m.vertices.len() as u32)
+        .map(|i| vertex(m, i))
+        .filter(|p| p.y > hi.y - 1.0)
+        .collect();
+    assert!(
+        top.iter().all(|p| p.z > 0.0),
+        "the flange top must be anterior"
+    );
     let dir = DVec3::new(0.3, 0.8, 0.52);
     for x in [-20.0, 20.0] {
-        assert_eq!(crossings(m, DVec3::new(x, lo.y + 25.0, lo.z + 4.0), dir) % 2, 1, "posterior condyle at x = {x}");
+        assert_eq!(
+            crossings(m, DVec3::new(x, lo.y + 25.0, lo.z + 4.0), dir) % 2,
+            1,
+            "posterior condyle at x = {x}"
+        );
     }
-    assert_eq!(crossings(m, DVec3::new(0.0, lo.y + 25.0, lo.z + 4.0), dir) % 2, 0, "the notch must separate the condyles");
+    assert_eq!(
+        crossings(m, DVec3::new(0.0, lo.y + 25.0, lo.z + 4.0), dir) % 2,
+        0,
+        "the notch must separate the condyles"
+    );
 }
 
 #[test]
@@ -162,15 +192,32 @@ fn beads_are_outside_clear_of_the_metal_and_well_spread() {
             .map(|t| point_triangle_distance(p, vertex(m, t[0]), vertex(m, t[1]), vertex(m, t[2])))
             .fold(f64::INFINITY, f64::min);
         let gap = d - bead.diameter_mm / 2.0;
-        eprintln!("{} at {:?}: surface {gap:.3} mm from the metal", bead.id, bead.position_mm);
+        eprintln!(
+            "{} at {:?}: surface {gap:.3} mm from the metal",
+            bead.id, bead.position_mm
+        );
         // In the bone bed proximal to the component: clear of the metal, but not far from it.
-        assert!((1.5..=40.0).contains(&gap), "{}: bead surface {gap} mm from the metal", bead.id);
+        assert!(
+            (1.5..=40.0).contains(&gap),
+            "{}: bead surface {gap} mm from the metal",
+            bead.id
+        );
         for dir in [DVec3::new(0.3, 0.8, 0.52), DVec3::new(-0.61, -0.2, 0.77)] {
-            assert_eq!(crossings(m, p, dir) % 2, 0, "{} is inside the metal", bead.id);
+            assert_eq!(
+                crossings(m, p, dir) % 2,
+                0,
+                "{} is inside the metal",
+                bead.id
+            );
         }
     }
     let n = c.beads.len() as f64;
-    let centroid = c.beads.iter().map(|b| DVec3::from_array(b.position_mm)).sum::<DVec3>() / n;
+    let centroid = c
+        .beads
+        .iter()
+        .map(|b| DVec3::from_array(b.position_mm))
+        .sum::<DVec3>()
+        / n;
     let mut cov = [[0.0; 3]; 3];
     for b in &c.beads {
         let d = (DVec3::from_array(b.position_mm) - centroid).to_array();
@@ -181,16 +228,36 @@ fn beads_are_outside_clear_of_the_metal_and_well_spread() {
         }
     }
     let e = symmetric_eigenvalues(cov);
-    eprintln!("bead covariance eigenvalues {e:?} mm², smallest/largest {:.3}", e[0] / e[2]);
+    eprintln!(
+        "bead covariance eigenvalues {e:?} mm², smallest/largest {:.3}",
+        e[0] / e[2]
+    );
     assert!(e[0] / e[2] > 0.15, "bead spread eigenvalues {e:?}");
-    assert!(e[0] > 25.0, "beads must spread at least 5 mm (RMS) in every direction: {e:?} mm²");
+    assert!(
+        e[0] > 25.0,
+        "beads must spread at least 5 mm (RMS) in every direction: {e:?} mm²"
+    );
 }
 
 /// The two views of the biplanar scenario: source, and detector pose (1800 mm source-to-image).
 fn views() -> [(&'static str, DVec3, Pose); 2] {
     [
-        ("AP", DVec3::new(0.0, 0.0, 1300.0), Pose { position_mm: DVec3::new(0.0, 0.0, -500.0), rotation: rotation_xyz_deg([0.0; 3]) }),
-        ("lateral", DVec3::new(1300.0, 0.0, 0.0), Pose { position_mm: DVec3::new(-500.0, 0.0, 0.0), rotation: rotation_xyz_deg([0.0, 90.0, 0.0]) }),
+        (
+            "AP",
+            DVec3::new(0.0, 0.0, 1300.0),
+            Pose {
+                position_mm: DVec3::new(0.0, 0.0, -500.0),
+                rotation: rotation_xyz_deg([0.0; 3]),
+            },
+        ),
+        (
+            "lateral",
+            DVec3::new(1300.0, 0.0, 0.0),
+            Pose {
+                position_mm: DVec3::new(-500.0, 0.0, 0.0),
+                rotation: rotation_xyz_deg([0.0, 90.0, 0.0]),
+            },
+        ),
     ]
 }
 
@@ -202,9 +269,14 @@ fn bead_discs(frame: &DetectorFrame, source: DVec3, pose: &Pose) -> Vec<(glam::D
         .iter()
         .map(|b| {
             let world = pose.to_world(DVec3::from_array(b.position_mm));
-            let uv = frame.project(source, world).expect("bead between source and detector");
+            let uv = frame
+                .project(source, world)
+                .expect("bead between source and detector");
             let magnification = s / (s - frame.pose.to_local(world).z);
-            (uv, b.diameter_mm / 2.0 * magnification / frame.pixel_pitch_mm[0])
+            (
+                uv,
+                b.diameter_mm / 2.0 * magnification / frame.pixel_pitch_mm[0],
+            )
         })
         .collect()
 }
@@ -220,41 +292,62 @@ fn beads_show_as_separate_blobs_in_both_views_at_any_pose() {
     const HALF: i64 = 40;
     let bvh = MeshBvh::new(&component().mesh);
     let angles = [-12.0, 0.0, 12.0];
-    let (mut mesh_gap, mut bead_gap) = ((f64::INFINITY, String::new()), (f64::INFINITY, String::new()));
+    let (mut mesh_gap, mut bead_gap) = (
+        (f64::INFINITY, String::new()),
+        (f64::INFINITY, String::new()),
+    );
     for (view, source, detector) in views() {
         // The 600² detector of 0.1 mm covers only 60 mm, less than the component's shadow: render
         // a window of the same pixel grid (extended across the detector plane) around each bead.
-        let frame = DetectorFrame { pose: detector, pixels: [600, 600], pixel_pitch_mm: [PITCH, PITCH] };
+        let frame = DetectorFrame {
+            pose: detector,
+            pixels: [600, 600],
+            pixel_pitch_mm: [PITCH, PITCH],
+        };
         for a in angles {
             for b in angles {
                 for g in angles {
-                    let pose = Pose { position_mm: DVec3::ZERO, rotation: rotation_xyz_deg([a, b, g]) };
+                    let pose = Pose {
+                        position_mm: DVec3::ZERO,
+                        rotation: rotation_xyz_deg([a, b, g]),
+                    };
                     let discs = bead_discs(&frame, source, &pose);
                     for (k, &(c, r)) in discs.iter().enumerate() {
                         let (i0, j0) = (c.x.floor() as i64 - HALF, c.y.floor() as i64 - HALF);
                         let n = 2 * HALF as u32;
                         let centre = frame.pixel_local((i0 + HALF) as f64, (j0 + HALF) as f64);
                         let window = DetectorFrame {
-                            pose: Pose { position_mm: detector.to_world(centre), rotation: detector.rotation },
+                            pose: Pose {
+                                position_mm: detector.to_world(centre),
+                                rotation: detector.rotation,
+                            },
                             pixels: [n, n],
                             pixel_pitch_mm: [PITCH, PITCH],
                         };
-                        let image = render_binary(&window, source, &[Object::Mesh { bvh: &bvh, pose }], 1);
+                        let image =
+                            render_binary(&window, source, &[Object::Mesh { bvh: &bvh, pose }], 1);
                         // Distance from the disc's edge to the nearest metal pixel centre, px.
                         let gap = image
                             .iter()
                             .enumerate()
                             .filter(|(_, p)| **p != 0)
                             .map(|(idx, _)| {
-                                let (i, j) = ((idx % n as usize) as i64 + i0, (idx / n as usize) as i64 + j0);
+                                let (i, j) = (
+                                    (idx % n as usize) as i64 + i0,
+                                    (idx / n as usize) as i64 + j0,
+                                );
                                 (glam::DVec2::new(i as f64 + 0.5, j as f64 + 0.5) - c).length() - r
                             })
                             .fold(HALF as f64 - r, f64::min);
                         let id = &component().beads[k].id;
                         // Dilated by one pixel, the disc must still touch no metal pixel.
-                        assert!(gap > 1.0, "{view} view, rotation [{a}, {b}, {g}]°: {id} touches the metal ({gap:.1} px)");
+                        assert!(
+                            gap > 1.0,
+                            "{view} view, rotation [{a}, {b}, {g}]°: {id} touches the metal ({gap:.1} px)"
+                        );
                         if gap < mesh_gap.0 {
-                            mesh_gap = (gap, format!("{id}, {view} view, rotation [{a}, {b}, {g}]°"));
+                            mesh_gap =
+                                (gap, format!("{id}, {view} view, rotation [{a}, {b}, {g}]°"));
                         }
                     }
                 }
@@ -265,7 +358,10 @@ fn beads_show_as_separate_blobs_in_both_views_at_any_pose() {
         for &a in &fine {
             for &b in &fine {
                 for &g in &fine {
-                    let pose = Pose { position_mm: DVec3::ZERO, rotation: rotation_xyz_deg([a, b, g]) };
+                    let pose = Pose {
+                        position_mm: DVec3::ZERO,
+                        rotation: rotation_xyz_deg([a, b, g]),
+                    };
                     let discs = bead_discs(&frame, source, &pose);
                     for (k, &(ck, rk)) in discs.iter().enumerate() {
                         for (l, &(cl, rl)) in discs.iter().enumerate().skip(k + 1) {
@@ -279,7 +375,13 @@ fn beads_show_as_separate_blobs_in_both_views_at_any_pose() {
                                 ids.1
                             );
                             if gap < bead_gap.0 {
-                                bead_gap = (gap, format!("{} and {}, {view} view, rotation [{a}, {b}, {g}]°", ids.0, ids.1));
+                                bead_gap = (
+                                    gap,
+                                    format!(
+                                        "{} and {}, {view} view, rotation [{a}, {b}, {g}]°",
+                                        ids.0, ids.1
+                                    ),
+                                );
                             }
                         }
                     }
@@ -287,10 +389,25 @@ fn beads_show_as_separate_blobs_in_both_views_at_any_pose() {
             }
         }
     }
-    eprintln!("smallest gap bead disc to metal: {:.1} px = {:.2} mm on the detector ({})", mesh_gap.0, mesh_gap.0 * PITCH, mesh_gap.1);
-    eprintln!("smallest gap between bead discs: {:.1} px = {:.2} mm on the detector ({})", bead_gap.0, bead_gap.0 * PITCH, bead_gap.1);
+    eprintln!(
+        "smallest gap bead disc to metal: {:.1} px = {:.2} mm on the detector ({})",
+        mesh_gap.0,
+        mesh_gap.0 * PITCH,
+        mesh_gap.1
+    );
+    eprintln!(
+        "smallest gap between bead discs: {:.1} px = {:.2} mm on the detector ({})",
+        bead_gap.0,
+        bead_gap.0 * PITCH,
+        bead_gap.1
+    );
     // A margin for the scenarios' position randomisation (±10 mm) and detector jitter.
-    assert!(mesh_gap.0 >= 10.0, "smallest bead-to-metal gap {:.1} px ({})", mesh_gap.0, mesh_gap.1);
+    assert!(
+        mesh_gap.0 >= 10.0,
+        "smallest bead-to-metal gap {:.1} px ({})",
+        mesh_gap.0,
+        mesh_gap.1
+    );
 }
 
 #[test]
@@ -300,7 +417,8 @@ fn the_component_is_deterministic() {
 
 #[test]
 fn the_shipped_model_matches_the_code() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/models/femoral_component.glb");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios/models/femoral_component.glb");
     let shipped = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let expected = crate::phantom::mesh_io::glb_bytes(&component().mesh).unwrap();
     assert!(

@@ -3,7 +3,12 @@
 use super::*;
 
 /// A unit tetrahedron (file units), outward-wound.
-const TETRA_POS: [[f32; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+const TETRA_POS: [[f32; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+];
 const TETRA_IDX: [u16; 12] = [0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3];
 
 /// The tetrahedron's buffer: 48 bytes of positions, then 24 bytes of u16 indices.
@@ -34,7 +39,10 @@ fn tetra_gltf(uri: &str, mode: u32, nodes: &str) -> String {
 }
 
 fn data_uri() -> String {
-    format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(tetra_bin()))
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(tetra_bin())
+    )
 }
 
 fn write(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
@@ -73,13 +81,19 @@ fn glb_bytes_are_deterministic_aligned_and_in_metres() {
     let a = glb_bytes(&mesh).unwrap();
     assert_eq!(a, glb_bytes(&mesh).unwrap());
     assert_eq!(a.len() % 4, 0);
-    assert_eq!(u32::from_le_bytes(a[8..12].try_into().unwrap()) as usize, a.len());
+    assert_eq!(
+        u32::from_le_bytes(a[8..12].try_into().unwrap()) as usize,
+        a.len()
+    );
     let json_len = u32::from_le_bytes(a[12..16].try_into().unwrap()) as usize;
     assert_eq!(json_len % 4, 0);
     let glb = gltf::binary::Glb::from_slice(&a).unwrap();
     let doc: serde_json::Value = serde_json::from_slice(&glb.json).unwrap();
     let max = doc["accessors"][0]["max"].as_array().unwrap();
-    assert!((max[0].as_f64().unwrap() - 0.010).abs() < 1e-6, "POSITION max must be in metres: {max:?}");
+    assert!(
+        (max[0].as_f64().unwrap() - 0.010).abs() < 1e-6,
+        "POSITION max must be in metres: {max:?}"
+    );
     assert_eq!(doc["scenes"].as_array().unwrap().len(), 1);
     assert_eq!(doc["nodes"].as_array().unwrap().len(), 1);
 }
@@ -87,7 +101,11 @@ fn glb_bytes_are_deterministic_aligned_and_in_metres() {
 #[test]
 fn gltf_with_a_data_uri_loads() {
     let dir = tempfile::tempdir().unwrap();
-    let path = write(dir.path(), "tetra.gltf", tetra_gltf(&data_uri(), 4, r#"[{"mesh":0}]"#));
+    let path = write(
+        dir.path(),
+        "tetra.gltf",
+        tetra_gltf(&data_uri(), 4, r#"[{"mesh":0}]"#),
+    );
     let mesh = load_mesh(&path, 10.0).unwrap();
     mesh.check_closed().unwrap();
     assert_eq!(mesh.triangles.len(), 4);
@@ -98,14 +116,25 @@ fn gltf_with_a_data_uri_loads() {
 fn gltf_with_an_external_bin_loads_and_a_missing_one_is_named() {
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), "tetra data.bin", tetra_bin());
-    let path = write(dir.path(), "tetra.gltf", tetra_gltf("tetra%20data.bin", 4, r#"[{"mesh":0}]"#));
+    let path = write(
+        dir.path(),
+        "tetra.gltf",
+        tetra_gltf("tetra%20data.bin", 4, r#"[{"mesh":0}]"#),
+    );
     let mesh = load_mesh(&path, 1.0).unwrap();
     mesh.check_closed().unwrap();
     assert_eq!(mesh.vertices.len(), 4);
 
-    let path = write(dir.path(), "lost.gltf", tetra_gltf("missing.bin", 4, r#"[{"mesh":0}]"#));
+    let path = write(
+        dir.path(),
+        "lost.gltf",
+        tetra_gltf("missing.bin", 4, r#"[{"mesh":0}]"#),
+    );
     let err = load_mesh(&path, 1.0).unwrap_err();
-    assert!(err.contains("missing.bin") && err.contains("relative to the .gltf"), "{err}");
+    assert!(
+        err.contains("missing.bin") && err.contains("relative to the .gltf"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -124,7 +153,11 @@ fn node_transforms_compose_parent_times_child() {
 #[test]
 fn a_mirroring_node_keeps_normals_outward() {
     let dir = tempfile::tempdir().unwrap();
-    let path = write(dir.path(), "mirror.gltf", tetra_gltf(&data_uri(), 4, r#"[{"scale":[-1,1,1],"mesh":0}]"#));
+    let path = write(
+        dir.path(),
+        "mirror.gltf",
+        tetra_gltf(&data_uri(), 4, r#"[{"scale":[-1,1,1],"mesh":0}]"#),
+    );
     let mesh = load_mesh(&path, 1.0).unwrap();
     assert_eq!(mesh.bounds_mm().0.x, -1.0);
     assert!(mesh.signed_volume_mm3() > 0.0);
@@ -140,7 +173,10 @@ fn stl_round_trip_binary_and_ascii() {
     back.check_closed().unwrap();
     assert_eq!(back.triangles.len(), mesh.triangles.len());
     assert_eq!(back.vertices.len(), mesh.vertices.len());
-    assert!((back.signed_volume_mm3() - mesh.signed_volume_mm3()).abs() < 1e-6 * mesh.signed_volume_mm3());
+    assert!(
+        (back.signed_volume_mm3() - mesh.signed_volume_mm3()).abs()
+            < 1e-6 * mesh.signed_volume_mm3()
+    );
 
     let mut ascii = String::from("solid tetra\n");
     for t in TETRA_IDX.chunks(3) {
@@ -161,16 +197,36 @@ fn stl_round_trip_binary_and_ascii() {
 #[test]
 fn unsupported_inputs_are_refused_with_the_valid_choices() {
     let dir = tempfile::tempdir().unwrap();
-    let path = write(dir.path(), "lines.gltf", tetra_gltf(&data_uri(), 3, r#"[{"mesh":0}]"#));
+    let path = write(
+        dir.path(),
+        "lines.gltf",
+        tetra_gltf(&data_uri(), 3, r#"[{"mesh":0}]"#),
+    );
     let err = load_mesh(&path, 1.0).unwrap_err();
-    assert!(err.contains("primitive 0 of mesh `x` uses mode LineStrip; only triangle meshes can be traced"), "{err}");
+    assert!(
+        err.contains(
+            "primitive 0 of mesh `x` uses mode LineStrip; only triangle meshes can be traced"
+        ),
+        "{err}"
+    );
 
     let path = write(dir.path(), "model.obj", "v 0 0 0\n");
     let err = load_mesh(&path, 1.0).unwrap_err();
-    assert!(err.contains("unsupported extension `.obj`: use .glb, .gltf or .stl"), "{err}");
+    assert!(
+        err.contains("unsupported extension `.obj`: use .glb, .gltf or .stl"),
+        "{err}"
+    );
 
     let path = write(dir.path(), "broken.glb", b"glTF\x02\0\0\0");
-    assert!(load_mesh(&path, 1000.0).unwrap_err().contains("not a valid glTF 2.0 file"));
-    assert!(load_mesh(&dir.path().join("absent.stl"), 1.0).unwrap_err().contains("cannot open"));
+    assert!(
+        load_mesh(&path, 1000.0)
+            .unwrap_err()
+            .contains("not a valid glTF 2.0 file")
+    );
+    assert!(
+        load_mesh(&dir.path().join("absent.stl"), 1.0)
+            .unwrap_err()
+            .contains("cannot open")
+    );
     assert!(load_mesh(&path, 0.0).unwrap_err().contains("positive"));
 }

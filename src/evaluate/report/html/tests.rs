@@ -23,7 +23,11 @@ fn check_tags(html: &str) -> Result<(), String> {
             stack.push(name);
         }
     }
-    if stack.is_empty() { Ok(()) } else { Err(format!("unclosed: {stack:?}")) }
+    if stack.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("unclosed: {stack:?}"))
+    }
 }
 
 #[test]
@@ -50,7 +54,10 @@ fn shows_the_facts_and_marks_significant_cells() {
     assert!(page.contains("<td>run-0007</td><td>no measured.json</td>"));
     assert_eq!(page.matches("<td class=\"pos").count(), 1);
     assert_eq!(page.matches("<td class=\"neg").count(), 1);
-    assert!(page.contains("<td class=\"pos gs\"><strong>1.0 ± 0.15</strong> ▲</td>"), "{page}");
+    assert!(
+        page.contains("<td class=\"pos gs\"><strong>1.0 ± 0.15</strong> ▲</td>"),
+        "{page}"
+    );
     assert!(page.contains("<td class=\"neg gs\"><strong>−0.50 ± 0.075</strong> ▼</td>"));
     assert!(page.contains("<td>0.30 (N=1)</td>"));
     assert!(page.contains("<th class=\"gs\">x<sub>r</sub> (mm)</th>"));
