@@ -206,7 +206,7 @@ pub fn reconstruct_run(
         ) else {
             continue;
         };
-        match find_model(dir, &exposure.id, &beamlines, beads) {
+        match find_model(dir, &exposure.id, &beamlines, beads, phantom.position_mm) {
             Ok(pose) => measured.phantoms.push(MeasuredPose {
                 id: phantom.id.clone(),
                 ..pose
@@ -342,14 +342,16 @@ fn find_model(
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
     beads: &[TableBead],
+    nominal_position_mm: DVec3,
 ) -> Result<MeasuredPose, String> {
     let mut views = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
-        // A bead's expected blob area, from the calibrated magnification at the box centre.
+        // A bead's expected blob area, from the calibrated magnification at the model's nominal
+        // position (the box may sit far from the model, as under a uniplanar table).
         let s = frame.pose.to_local(c.beamline.source_mm);
-        let z = frame.pose.to_local(DVec3::ZERO).z;
+        let z = frame.pose.to_local(nominal_position_mm).z;
         let diameter = beads.iter().map(|b| b.diameter_mm).fold(0.0, f64::max);
         let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
         let expected = std::f64::consts::PI * radius_px * radius_px;
