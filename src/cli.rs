@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
-use rsasim::reconstruct::Method;
+use rsasim::reconstruct::{Method, ModelMethod};
 
 /// rsasim: simulate Radio Stereometric Analysis X-ray scenes with known ground truth.
 ///
@@ -99,6 +99,12 @@ pub enum Command {
         /// plate, focus from the control plate; not statistically optimal), for comparison.
         #[arg(long, default_value = "dlt", value_parser = method_parser())]
         method: Method,
+        /// How each model's pose is found. markers: marker-based RSA (triangulate the model's
+        /// beads in two views, fit its bead table). silhouette: model-based RSA (fit the model
+        /// mesh's projected outline to the edges of its shadow in every view; no beads needed).
+        /// Default: markers for a model with beads, silhouette for a model without.
+        #[arg(long, value_name = "METHOD", value_parser = model_method_parser())]
+        model_method: Option<ModelMethod>,
     },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {
@@ -109,6 +115,17 @@ pub enum Command {
         #[arg(long, value_name = "DIR")]
         write_dir: Option<PathBuf>,
     },
+}
+
+/// `markers` | `silhouette` → [`ModelMethod`], listing both in `--help`.
+fn model_method_parser() -> impl TypedValueParser<Value = ModelMethod> {
+    PossibleValuesParser::new(["markers", "silhouette"]).map(|s| {
+        if s == "silhouette" {
+            ModelMethod::Silhouette
+        } else {
+            ModelMethod::Markers
+        }
+    })
 }
 
 /// `dlt` | `selvik` → [`Method`], listing both in `--help`.

@@ -31,7 +31,11 @@ fn main() -> ExitCode {
             );
         }),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
-        Some(Command::Reconstruct { out, method }) => reconstruct(&out, method),
+        Some(Command::Reconstruct {
+            out,
+            method,
+            model_method,
+        }) => reconstruct(&out, method, model_method),
         Some(Command::Evaluate {
             out,
             measured,
@@ -100,10 +104,14 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
     Ok(())
 }
 
-fn reconstruct(out: &std::path::Path, method: rsasim::reconstruct::Method) -> Result<(), u8> {
+fn reconstruct(
+    out: &std::path::Path,
+    method: rsasim::reconstruct::Method,
+    model_method: Option<rsasim::reconstruct::ModelMethod>,
+) -> Result<(), u8> {
     let start = Instant::now();
-    let summary =
-        rsasim::reconstruct::reconstruct(out, method).map_err(|errors| report_errors(&errors))?;
+    let summary = rsasim::reconstruct::reconstruct(out, method, model_method)
+        .map_err(|errors| report_errors(&errors))?;
     for (run, why) in &summary.failed {
         eprintln!("error: run {run}: {why}");
     }

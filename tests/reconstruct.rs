@@ -152,6 +152,121 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
     }
 }
 
+/// Runs `reconstruct` with `args` on `out` with every truth.json hidden, then evaluates.
+fn reconstruct_without_truth(out: &std::path::Path, args: &[&str]) -> Report {
+    let runs: Vec<_> = std::fs::read_dir(out.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    for r in &runs {
+        std::fs::rename(r.join("truth.json"), r.join("hidden")).unwrap();
+    }
+    let mut all = vec!["reconstruct", out.to_str().unwrap()];
+    all.extend(args);
+    let o = rsasim(&all, &[]);
+    for r in &runs {
+        std::fs::rename(r.join("hidden"), r.join("truth.json")).unwrap();
+    }
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    evaluate(
+        out,
+        &Options {
+            measured: MeasuredSource::PerRun("measured.json".into()),
+            confidence: Confidence::default(),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e:?}"))
+}
+
+/// The femur's fit residual in every run's measured.json: (contour distance px, points).
+fn contour_quality(out: &std::path::Path) -> Vec<(f64, usize)> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(out.join("runs")).unwrap() {
+        let text = std::fs::read_to_string(e.unwrap().path().join("measured.json")).unwrap();
+        let m: rsasim::output::measured::Measured = serde_json::from_str(&text).unwrap();
+        let q = m
+            .phantoms
+            .iter()
+            .find(|p| p.id == "femur")
+            .and_then(|p| p.quality.clone())
+            .expect("the femur was found");
+        v.push((
+            q.contour_distance_px.expect("a contour distance"),
+            q.contour_points.expect("a point count"),
+        ));
+    }
+    v
+}
+
+#[test]
+fn model_based_rsa_finds_the_femur_by_its_silhouette_at_both_extreme_noise_levels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sil");
+    run_scenario("tests/scenarios/reconstruct.toml", &out, &[]);
+    // The femur has beads, so model-based RSA has to be asked for.
+    let report = reconstruct_without_truth(&out, &["--model-method", "silhouette"]);
+    assert!(report.excluded.is_empty(), "{:?}", report.excluded);
+    assert!(
+        report
+            .software
+            .iter()
+            .all(|s| s.contains("model-based (silhouette)")),
+        "{:?}",
+        report.software
+    );
+    let trueness = |c: &rsasim::evaluate::stats::Cell| c.trueness;
+    let rms = |c: &rsasim::evaluate::stats::Cell| c.rms;
+    for (group, cols) in [
+        ("position", vec!["x", "y", "z"]),
+        ("orientation", vec!["α", "β", "γ"]),
+    ] {
+        let t = cell_max(&report, "phantom-femur", group, &cols, trueness);
+        let r = cell_max(&report, "phantom-femur", group, &cols, rms);
+        eprintln!("silhouette: femur {group}: max |T| {t:.4}, max RMS {r:.4}");
+        // The targets: 0.1 mm and 0.1° per axis.
+        assert!(t < 0.1 && r < 0.1, "femur {group}: |T| {t}, RMS {r}");
+    }
+    for (distance, points) in contour_quality(&out) {
+        // Binary pixels put an edge point a quarter pixel from the true edge on average.
+        assert!(distance > 0.1 && distance < 0.35, "{distance} px");
+        assert!(points > 1500, "{points} points");
+    }
+}
+
+#[test]
+fn a_model_without_beads_is_found_by_its_silhouette_by_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("mb");
+    run_scenario("tests/scenarios/model_based.toml", &out, &[]);
+    let report = reconstruct_without_truth(&out, &[]);
+    assert!(report.excluded.is_empty(), "{:?}", report.excluded);
+    let rms = |c: &rsasim::evaluate::stats::Cell| c.rms;
+    for (group, cols) in [
+        ("position", vec!["x", "y", "z"]),
+        ("orientation", vec!["α", "β", "γ"]),
+    ] {
+        let r = cell_max(&report, "phantom-femur", group, &cols, rms);
+        eprintln!("no beads: femur {group}: max RMS {r:.4}");
+        assert!(r < 0.1, "femur {group}: RMS {r}");
+    }
+    assert_eq!(contour_quality(&out).len(), 2);
+    // Asking for marker-based RSA on a model without beads finds no model, and says why.
+    let o = rsasim(
+        &[
+            "reconstruct",
+            out.to_str().unwrap(),
+            "--model-method",
+            "markers",
+        ],
+        &[],
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("the model has no beads; use --model-method silhouette"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn a_model_far_above_its_cage_is_found_in_the_uniplanar_set_up() {
     let tmp = tempfile::tempdir().unwrap();

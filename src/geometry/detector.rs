@@ -61,6 +61,24 @@ impl DetectorFrame {
         Some(self.local_to_pixel(hit))
     }
 
+    /// The derivatives of [`project`](Self::project)'s (u, v) with respect to the world position
+    /// of `point`: `[∇u, ∇v]`, pixels per mm. `None` where `project` gives `None`.
+    pub fn project_gradient(&self, source: DVec3, point: DVec3) -> Option<[DVec3; 2]> {
+        let s = self.pose.to_local(source);
+        let p = self.pose.to_local(point);
+        let dz = s.z - p.z;
+        if s.z <= 0.0 || dz <= 0.0 {
+            return None;
+        }
+        // hit = s + (p − s)·t with t = s.z / dz: ∂hit_x/∂p = (t, 0, (p_x − s_x)·s.z/dz²).
+        let t = s.z / dz;
+        let k = s.z / (dz * dz);
+        let du = DVec3::new(t, 0.0, (p.x - s.x) * k) / self.pixel_pitch_mm[0];
+        let dv = DVec3::new(0.0, t, (p.y - s.y) * k) / self.pixel_pitch_mm[1];
+        // Local = Rᵀ·(world − position), so a local gradient g is R·g in the world.
+        Some([self.pose.rotation * du, self.pose.rotation * dv])
+    }
+
     /// Width and height of the active area in mm.
     pub fn size_mm(&self) -> [f64; 2] {
         [
@@ -109,6 +127,17 @@ mod tests {
             let p = source + (c - source) * 0.6;
             let uv = d.project(source, p).unwrap();
             assert!((uv - DVec2::new(i as f64 + 0.5, j as f64 + 0.5)).length() < 1e-9);
+        }
+        // The gradient matches central differences.
+        let p = source + (d.pixel_centre_world(2, 1) - source) * 0.7 + DVec3::new(3.0, -1.0, 2.0);
+        let [gu, gv] = d.project_gradient(source, p).unwrap();
+        for (axis, e) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
+            let h = 1e-4;
+            let fd = (d.project(source, p + e * h).unwrap()
+                - d.project(source, p - e * h).unwrap())
+                / (2.0 * h);
+            assert!((fd.x - gu[axis]).abs() < 1e-6, "u/{axis}: {fd} vs {gu}");
+            assert!((fd.y - gv[axis]).abs() < 1e-6, "v/{axis}: {fd} vs {gv}");
         }
         // A point behind the source does not project.
         assert!(

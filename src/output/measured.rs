@@ -62,6 +62,13 @@ pub struct FitQuality {
     /// Condition number of the bead configuration (CN); the guideline limit is 150.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub condition_number: Option<f64>,
+    /// Model-based RSA: the mean distance between the detected edge points of the model's shadow
+    /// and its fitted projected outline, pixels (over every view).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contour_distance_px: Option<f64>,
+    /// Model-based RSA: the number of detected edge points the fit used (over every view).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contour_points: Option<usize>,
     /// Guideline limits exceeded, e.g. `"ME > 0.35 mm"`, `"CN > 150"`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub flags: Vec<String>,

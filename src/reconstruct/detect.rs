@@ -21,6 +21,12 @@ pub struct Blob {
 
 /// Every 8-connected component of pixels equal to `on` in a `width`-wide row-major image.
 pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
+    components(pixels, width, on).1
+}
+
+/// [`blobs`] with the label image: `labels[k]` is 1 + the index of pixel `k`'s blob, or 0 for a
+/// pixel that is not `on`.
+pub fn components(pixels: &[u16], width: usize, on: u16) -> (Vec<u32>, Vec<Blob>) {
     let height = pixels.len() / width;
     let mut label = vec![0u32; pixels.len()];
     let mut out = Vec::new();
@@ -65,7 +71,7 @@ pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
             bbox,
         });
     }
-    out
+    (label, out)
 }
 
 #[cfg(test)]

@@ -3,12 +3,13 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::DVec3;
 
 use crate::diagnostic::Diagnostic;
 use crate::expand::{Run, expand_run};
-use crate::phantom;
+use crate::phantom::{self, TriMesh};
 use crate::scenario::{self, PoseRange, PositionRange, Scenario};
 
 /// A bead of a phantom's table (`phantoms/<id>.csv` or `phantoms/<id>-beads.csv`), in the
@@ -33,9 +34,12 @@ pub struct Setup {
     pub nominal: Run,
     /// Bead tables by phantom id.
     pub beads: BTreeMap<String, Vec<TableBead>>,
+    /// Model meshes (from the files of `OUT/phantoms/`, in each phantom's local frame, mm) by
+    /// phantom id.
+    pub meshes: BTreeMap<String, Arc<TriMesh>>,
 }
 
-/// Reads `OUT/scenario.toml` and the bead tables of `OUT/phantoms/`.
+/// Reads `OUT/scenario.toml`, the bead tables and the model meshes of `OUT/phantoms/`.
 pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
     crate::output::check_output_folder(out)?;
     let loaded = scenario::load(&out.join("scenario.toml"))?;
@@ -63,10 +67,15 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
             beads.insert(p.id.clone(), read_bead_table(&file)?);
         }
     }
+    let meshes = models
+        .into_iter()
+        .filter_map(|m| m.mesh.map(|mesh| (m.id, mesh)))
+        .collect();
     Ok(Setup {
         scenario: loaded.scenario,
         nominal,
         beads,
+        meshes,
     })
 }
 

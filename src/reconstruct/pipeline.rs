@@ -1,20 +1,24 @@
 //! One exam from images to `measured.json`: calibrate every beamline from the box beads, then
-//! find each model by marker-based RSA (triangulate its beads, fit its bead geometry).
+//! find each model by marker-based RSA (triangulate its beads, fit its bead geometry) or by
+//! model-based RSA (fit its mesh's projected outline to its shadow in every view).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use glam::{DVec2, DVec3};
 
-use super::Method;
 use super::calibrate::{Beamline, Refined, calibrate};
+use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::detect::{Blob, blobs};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
+use super::model_outline::OutlineModel;
 use super::selvik::calibrate_selvik;
+use super::silhouette::{GOOD_FIT_PX, SilhouetteView, fit_silhouette};
+use super::{Method, ModelMethod};
 use crate::expand::DetectorState;
-use crate::geometry::{DetectorFrame, rotation_rows, rotation_xyz_deg};
+use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
 use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
 use crate::scenario::PlateRole;
 
@@ -32,14 +36,28 @@ struct Calibrated {
     beads: usize,
 }
 
-/// The software's name in `measured.json`, naming the calibration method.
-pub fn software(method: Method) -> String {
-    let calibration = match method {
+/// The methods of one `reconstruct` call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Methods {
+    /// How every beamline is calibrated.
+    pub calibration: Method,
+    /// How every model is found; `None`: by [`ModelMethod::for_model`].
+    pub model: Option<ModelMethod>,
+}
+
+/// The software's name in `measured.json`, naming the calibration and model methods.
+pub fn software(methods: Methods) -> String {
+    let calibration = match methods.calibration {
         Method::Dlt => "DLT + LM",
         Method::Selvik => "Selvik: fiducial homography + control focus",
     };
+    let model = match methods.model {
+        Some(ModelMethod::Markers) => "marker-based",
+        Some(ModelMethod::Silhouette) => "model-based (silhouette)",
+        None => "marker-based, or model-based (silhouette) for models without beads",
+    };
     format!(
-        "rsasim reconstruct {} ({calibration}, marker-based)",
+        "rsasim reconstruct {} ({calibration}, {model})",
         env!("CARGO_PKG_VERSION")
     )
 }
@@ -53,13 +71,16 @@ struct PlateUse {
 
 /// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
 /// the result, as a real software would report a failure.
-/// Every beamline is calibrated by `method`.
+/// Every beamline is calibrated by `methods.calibration`; each model is found by
+/// `methods.model`, with the outline models of `outlines` (by phantom id) for model-based RSA.
 pub fn reconstruct_run(
     setup: &Setup,
+    outlines: &BTreeMap<String, OutlineModel>,
     run_id: &str,
     dir: &Path,
-    method: Method,
+    methods: Methods,
 ) -> Result<Measured, String> {
+    let method = methods.calibration;
     let nominal = &setup.nominal;
     let box_id = setup
         .scenario
@@ -77,7 +98,7 @@ pub fn reconstruct_run(
     let mut measured = Measured {
         format: MEASURED_FORMAT.into(),
         run: run_id.into(),
-        software: software(method),
+        software: software(methods),
         sources: vec![],
         detectors: vec![],
         phantoms: vec![],
@@ -196,17 +217,34 @@ pub fn reconstruct_run(
         if phantom.kind == "calibration_box" {
             continue;
         }
-        let (Some(beads), Some(exposure)) = (
-            setup.beads.get(&phantom.id),
-            setup
-                .scenario
-                .exposures
-                .iter()
-                .find(|e| e.phantoms.contains(&phantom.id)),
-        ) else {
+        let Some(exposure) = setup
+            .scenario
+            .exposures
+            .iter()
+            .find(|e| e.phantoms.contains(&phantom.id))
+        else {
             continue;
         };
-        match find_model(dir, &exposure.id, &beamlines, beads, phantom.position_mm) {
+        let beads = setup.beads.get(&phantom.id).filter(|b| !b.is_empty());
+        let found = match ModelMethod::for_model(methods.model, beads.is_some()) {
+            ModelMethod::Markers => match beads {
+                Some(beads) => {
+                    find_model(dir, &exposure.id, &beamlines, beads, phantom.position_mm)
+                }
+                None => Err(
+                    "the model has no beads; use --model-method silhouette for model-based RSA"
+                        .into(),
+                ),
+            },
+            ModelMethod::Silhouette => match outlines.get(&phantom.id) {
+                Some(model) => find_model_by_outline(dir, &exposure.id, &beamlines, model, phantom.pose()),
+                None => Err(
+                    "the model has no mesh; model-based RSA fits a mesh's outline (use --model-method markers)"
+                        .into(),
+                ),
+            },
+        };
+        match found {
             Ok(pose) => measured.phantoms.push(MeasuredPose {
                 id: phantom.id.clone(),
                 ..pose
@@ -389,6 +427,53 @@ fn find_model(
             crossing_line_error_mm: Some(found.crossing_line_error_mm),
             mean_error_mm: Some(fit.mean_error_mm),
             condition_number: Some(fit.condition_number),
+            flags,
+            ..Default::default()
+        }),
+    })
+}
+
+/// Model-based RSA of one model: its shadow's outline in every calibrated view, fitted from the
+/// nominal pose (see [`super::silhouette`]).
+fn find_model_by_outline(
+    dir: &Path,
+    exposure: &str,
+    beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
+    model: &OutlineModel,
+    nominal: Pose,
+) -> Result<MeasuredPose, String> {
+    let mut outlines = Vec::new();
+    for (c, det) in beamlines.values() {
+        let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
+        if let Some(o) = outline(&px, w as usize, det.i_max()) {
+            outlines.push((
+                c.beamline.frame(det.pixels, det.pixel_pitch_mm),
+                c.beamline.source_mm,
+                o,
+            ));
+        }
+    }
+    let views: Vec<SilhouetteView> = outlines
+        .iter()
+        .map(|(frame, source_mm, outline)| SilhouetteView {
+            frame: *frame,
+            source_mm: *source_mm,
+            outline,
+        })
+        .collect();
+    let fit = fit_silhouette(model, &views, nominal)?;
+    let mut flags = Vec::new();
+    if fit.mean_distance_px > GOOD_FIT_PX {
+        flags.push(format!("contour distance > {GOOD_FIT_PX} px"));
+    }
+    Ok(MeasuredPose {
+        id: String::new(),
+        position_mm: fit.pose.position_mm.to_array(),
+        rotation: Some(rotation_rows(&fit.pose.rotation)),
+        markers: vec![],
+        quality: Some(FitQuality {
+            contour_distance_px: Some(fit.mean_distance_px),
+            contour_points: Some(fit.points_used),
             flags,
             ..Default::default()
         }),

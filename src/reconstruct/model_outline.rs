@@ -1,0 +1,249 @@
+//! The projected outline of a model's mesh as a calibrated beamline sees it at a given pose.
+//!
+//! The shadow of a closed mesh from a point source is bounded by the images of its *contour
+//! generator*: the edges between a face that faces the source and one that faces away. Some of
+//! those edges lie inside the shadow (a fold, or an edge hidden behind another part of the
+//! model); an edge is kept when a ray passing just outside its projected midpoint, on the side
+//! away from its faces, misses the mesh. What is left are the segments of the outer outline, in
+//! continuous pixel coordinates, with the 3-D points they come from so that a fit can move them.
+
+use glam::{DMat3, DVec2, DVec3};
+
+use crate::geometry::{DetectorFrame, Pose};
+use crate::phantom::TriMesh;
+use crate::trace::MeshBvh;
+
+/// How far outside an edge's projected midpoint the visibility ray passes, pixels.
+const VISIBILITY_OFFSET_PX: f64 = 0.25;
+
+/// A model mesh prepared for outline projection: face normals, edge adjacency and a BVH.
+pub struct OutlineModel {
+    vertices: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    /// Unnormalised outward face normals, local frame.
+    normals: Vec<DVec3>,
+    /// Every undirected edge once: its two vertices and its two faces.
+    edges: Vec<MeshEdge>,
+    bvh: MeshBvh,
+    /// Centre of the local bounding box, mm.
+    pub centre_mm: DVec3,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct MeshEdge {
+    a: u32,
+    b: u32,
+    faces: [u32; 2],
+}
+
+/// One segment of the outer outline in one image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutlineSegment {
+    /// Projected end points, continuous pixel coordinates.
+    pub uv: [DVec2; 2],
+    /// The 3-D end points (world frame, mm) that project there.
+    pub world_mm: [DVec3; 2],
+}
+
+impl OutlineModel {
+    /// Prepares a closed, consistently oriented mesh (as `phantom::build` gives): every edge is
+    /// shared by exactly two faces.
+    pub fn new(mesh: &TriMesh) -> Result<OutlineModel, String> {
+        let vertices: Vec<DVec3> = mesh
+            .vertices
+            .iter()
+            .map(|v| DVec3::from_array(v.map(f64::from)))
+            .collect();
+        let normals = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| vertices[i as usize]);
+                (b - a).cross(c - a)
+            })
+            .collect();
+        // Directed edges sorted by their undirected key pair up with their twins.
+        let mut directed: Vec<(u32, u32, u32)> = Vec::with_capacity(mesh.triangles.len() * 3);
+        for (f, t) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                directed.push((a.min(b), a.max(b), f as u32));
+            }
+        }
+        directed.sort_unstable();
+        let mut edges = Vec::with_capacity(directed.len() / 2);
+        for pair in directed.chunks(2) {
+            match pair {
+                [x, y] if (x.0, x.1) == (y.0, y.1) => edges.push(MeshEdge {
+                    a: x.0,
+                    b: x.1,
+                    faces: [x.2, y.2],
+                }),
+                _ => {
+                    return Err(
+                        "the model mesh is not closed: an edge is not shared by exactly two faces"
+                            .into(),
+                    );
+                }
+            }
+        }
+        let (lo, hi) = mesh.bounds_mm();
+        Ok(OutlineModel {
+            vertices,
+            triangles: mesh.triangles.clone(),
+            normals,
+            edges,
+            bvh: MeshBvh::new(mesh),
+            centre_mm: (lo + hi) / 2.0,
+        })
+    }
+
+    /// The mesh's BVH (for rendering a predicted shadow).
+    pub fn bvh(&self) -> &MeshBvh {
+        &self.bvh
+    }
+
+    /// The outer outline of the model at `pose` (local → world) seen from `source_mm` on
+    /// `frame`. Edges with an end point that does not project are skipped.
+    pub fn outline(
+        &self,
+        pose: &Pose,
+        source_mm: DVec3,
+        frame: &DetectorFrame,
+    ) -> Vec<OutlineSegment> {
+        let to_local: DMat3 = pose.rotation.transpose();
+        let source_local = to_local * (source_mm - pose.position_mm);
+        let facing: Vec<bool> = self
+            .normals
+            .iter()
+            .zip(&self.triangles)
+            .map(|(n, t)| n.dot(source_local - self.vertices[t[0] as usize]) > 0.0)
+            .collect();
+        let mut out = Vec::new();
+        for e in &self.edges {
+            let [f0, f1] = e.faces.map(|f| f as usize);
+            if facing[f0] == facing[f1] {
+                continue;
+            }
+            let world = [e.a, e.b].map(|v| pose.to_world(self.vertices[v as usize]));
+            let (Some(ua), Some(ub)) = (
+                frame.project(source_mm, world[0]),
+                frame.project(source_mm, world[1]),
+            ) else {
+                continue;
+            };
+            // The third vertex of a face on this edge lies on the shadow's side of the edge.
+            let t = self.triangles[f0];
+            let third = t
+                .into_iter()
+                .find(|&v| v != e.a && v != e.b)
+                .unwrap_or(t[0]);
+            let Some(uc) = frame.project(source_mm, pose.to_world(self.vertices[third as usize]))
+            else {
+                continue;
+            };
+            let along = ub - ua;
+            if along.length_squared() == 0.0 {
+                continue;
+            }
+            let mut outward = DVec2::new(along.y, -along.x).normalize();
+            if outward.dot(uc - ua) > 0.0 {
+                outward = -outward;
+            }
+            let probe = (ua + ub) / 2.0 + outward * VISIBILITY_OFFSET_PX;
+            let target = frame.pose.to_world(frame.pixel_local(probe.x, probe.y));
+            if self
+                .bvh
+                .segment_hits(source_local, to_local * (target - source_mm))
+            {
+                continue;
+            }
+            out.push(OutlineSegment {
+                uv: [ua, ub],
+                world_mm: world,
+            });
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sphere_outlines_as_its_exact_shadow_circle() {
+        // Source on the z axis 1000 mm above a detector at z = 0; a sphere of radius 20 mm at
+        // z = 400: its shadow is a circle of radius 1000·tan(asin(20/600)) about the foot point.
+        let frame = DetectorFrame {
+            pose: Pose::IDENTITY,
+            pixels: [400, 400],
+            pixel_pitch_mm: [0.25, 0.25],
+        };
+        let model = OutlineModel::new(&TriMesh::uv_sphere(20.0, 96, 192)).unwrap();
+        let source = DVec3::new(0.0, 0.0, 1000.0);
+        let pose = Pose {
+            position_mm: DVec3::new(0.0, 0.0, 400.0),
+            rotation: crate::geometry::rotation_xyz_deg([20.0, -10.0, 5.0]),
+        };
+        let segments = model.outline(&pose, source, &frame);
+        let radius_px = 1000.0 * (20.0f64 / 600.0).asin().tan() / 0.25;
+        let centre = DVec2::new(200.0, 200.0);
+        assert!(segments.len() > 150, "{}", segments.len());
+        let mut around = 0.0;
+        for s in &segments {
+            for uv in s.uv {
+                // Facet vertices lie on the sphere (to f32 precision), so the outline is within the
+                // facet sag.
+                let r = (uv - centre).length();
+                assert!(
+                    r <= radius_px * 1.000_01 && r > radius_px * 0.999,
+                    "{r} vs {radius_px}"
+                );
+            }
+            around += (s.uv[1] - s.uv[0]).length();
+            // Each segment's end points come from its 3-D points.
+            for k in 0..2 {
+                let p = frame.project(source, s.world_mm[k]).unwrap();
+                assert!((p - s.uv[k]).length() < 1e-9);
+            }
+        }
+        // The outline closes once around the circle (a zig-zag would make it longer).
+        let circumference = 2.0 * std::f64::consts::PI * radius_px;
+        assert!(
+            (around / circumference - 1.0).abs() < 0.02,
+            "{around} vs {circumference}"
+        );
+    }
+
+    #[test]
+    fn edges_hidden_behind_the_model_are_left_out() {
+        // Two spheres, one in front of the other along the ray: only the larger shadow's outline
+        // remains where the smaller one lies inside it.
+        let mut mesh = TriMesh::uv_sphere(10.0, 48, 96);
+        let small = TriMesh::uv_sphere(4.0, 24, 48);
+        let offset = mesh.vertices.len() as u32;
+        mesh.vertices
+            .extend(small.vertices.iter().map(|v| [v[0], v[1], v[2] + 40.0]));
+        mesh.triangles
+            .extend(small.triangles.iter().map(|t| t.map(|i| i + offset)));
+        let model = OutlineModel::new(&mesh).unwrap();
+        let frame = DetectorFrame {
+            pose: Pose::IDENTITY,
+            pixels: [200, 200],
+            pixel_pitch_mm: [0.25, 0.25],
+        };
+        let source = DVec3::new(0.0, 0.0, 1000.0);
+        let pose = Pose {
+            position_mm: DVec3::new(0.0, 0.0, 300.0),
+            rotation: DMat3::IDENTITY,
+        };
+        let segments = model.outline(&pose, source, &frame);
+        let big_radius_px = 1000.0 * (10.0f64 / 700.0).asin().tan() / 0.25;
+        for s in &segments {
+            let r = (s.uv[0] - DVec2::new(100.0, 100.0)).length();
+            assert!(r > big_radius_px * 0.99, "an inner edge at {r} px was kept");
+        }
+        assert!(segments.len() > 80);
+    }
+}
