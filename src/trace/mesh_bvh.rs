@@ -1,4 +1,5 @@
-//! A closed mesh in a BVH (obvhs), queried with the watertight triangle test.
+//! A closed mesh in a BVH (obvhs), queried with the watertight triangle test; it also keeps the
+//! indexed mesh for scan conversion (`raster.rs`).
 
 use std::time::Duration;
 
@@ -9,6 +10,7 @@ use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
 
+use super::raster::Faces;
 use super::watertight::ShearedRay;
 use crate::phantom::TriMesh;
 
@@ -20,10 +22,17 @@ pub struct MeshBvh {
     triangles: Vec<Triangle>,
     /// Local bounds (min, max), mm.
     pub bounds_mm: (DVec3, DVec3),
+    /// The mesh's vertices in its local frame, mm (for scan conversion).
+    pub(super) vertices_mm: Vec<DVec3>,
+    /// The mesh's triangles as indices into `vertices_mm`, in the mesh's order and winding.
+    pub(super) faces: Vec<[u32; 3]>,
+    /// Which projected triangles scan conversion must fill (see [`Faces`]).
+    pub(super) facing: Faces,
 }
 
 impl MeshBvh {
-    /// Builds the BVH (obvhs `medium_build`, single-threaded: the layout is deterministic).
+    /// Builds the BVH (obvhs `medium_build`, single-threaded: the layout is deterministic), and
+    /// checks whether the mesh is closed (scan conversion then fills front faces only).
     pub fn new(mesh: &TriMesh) -> MeshBvh {
         let v = |i: u32| Vec3A::from_array(mesh.vertices[i as usize]);
         let tris: Vec<Triangle> = mesh
@@ -45,10 +54,23 @@ impl MeshBvh {
             .iter()
             .map(|&i| tris[i as usize])
             .collect();
+        // Front faces alone cover a closed mesh's shadow (raster.rs); any other mesh needs all.
+        let facing = match mesh.check_closed() {
+            Ok(()) if mesh.signed_volume_mm3() >= 0.0 => Faces::Outward,
+            Ok(()) => Faces::Inward,
+            Err(_) => Faces::All,
+        };
         MeshBvh {
             bvh,
             triangles,
             bounds_mm: mesh.bounds_mm(),
+            vertices_mm: mesh
+                .vertices
+                .iter()
+                .map(|v| DVec3::from_array(v.map(f64::from)))
+                .collect(),
+            faces: mesh.triangles.clone(),
+            facing,
         }
     }
 

@@ -1,12 +1,23 @@
-//! The tracing stage: rays from a point source to every pixel centre of a detector, tested
-//! against the phantoms of one exposure. The paper's binary mode: a pixel whose ray crosses any
+//! The tracing stage: the paper's binary mode. A ray from the point source to every pixel centre
+//! of a detector is tested against the phantoms of one exposure; a pixel whose ray crosses any
 //! object gets I_max, every other pixel 0.
 //!
-//! Only pixels inside an object's projected bounds are traced: each object's bounding box is
+//! Two projectors compute that image. [`render_binary`], the default, scan-converts (`raster.rs`):
+//! each mesh's projected front-facing triangles are filled row by row over the pixel centres, and
+//! each bead's candidate pixels are bounded per row by its projected ellipse, then decided by the
+//! exact sphere predicate. [`render_binary_traced`] traces one ray per pixel centre: meshes through
+//! a BVH with a watertight triangle test (`mesh_bvh.rs`, `watertight.rs`), beads by the same exact
+//! predicate. The two agree on every bead pixel, and on every mesh pixel except those whose centre
+//! lies within rounding distance of a projected silhouette edge (the tracer works in f32). A mesh
+//! that cannot be projected (a vertex at or behind the source's plane or beyond the detector plane)
+//! is traced by `render_binary` too.
+//!
+//! Both only look at pixels inside an object's projected bounds: each object's bounding box is
 //! projected onto the detector (the projection of a convex hull is the convex hull of the
 //! projections, so the corners' pixel rectangle bounds the object's shadow).
 
 mod mesh_bvh;
+mod raster;
 mod watertight;
 
 pub use mesh_bvh::MeshBvh;
@@ -33,7 +44,10 @@ pub enum Object<'a> {
     },
 }
 
-/// A binary projection image, row-major, `W × H` detector counts.
+/// A binary projection image, row-major, `W × H` detector counts: `i_max` where the ray from
+/// `source_mm` to the pixel centre crosses an object, 0 elsewhere. Scan conversion (see the
+/// module docs); the same image as [`render_binary_traced`] up to pixels whose centre lies within
+/// rounding distance of a mesh's projected silhouette.
 pub fn render_binary(
     frame: &DetectorFrame,
     source_mm: DVec3,
@@ -43,20 +57,74 @@ pub fn render_binary(
     let [w, h] = frame.pixels;
     let mut image = vec![0u16; w as usize * h as usize];
     for object in objects {
-        let (lo, hi) = object.local_bounds();
-        let Some((i0, i1, j0, j1)) = pixel_bounds(frame, source_mm, object.pose(), lo, hi) else {
-            continue;
-        };
-        for j in j0..j1 {
-            for i in i0..i1 {
-                let px = &mut image[j as usize * w as usize + i as usize];
-                if *px == 0 && object.blocks(source_mm, frame.pixel_centre_world(i, j)) {
-                    *px = i_max;
+        match object {
+            Object::Sphere {
+                centre_mm,
+                radius_mm,
+            } => {
+                let (lo, hi) = object.local_bounds();
+                if let Some(bounds) = pixel_bounds(frame, source_mm, object.pose(), lo, hi) {
+                    raster::fill_sphere(
+                        &mut image, frame, source_mm, *centre_mm, *radius_mm, bounds, i_max,
+                    );
+                }
+            }
+            Object::Mesh { bvh, pose } => {
+                if !raster::fill_mesh(&mut image, frame, source_mm, bvh, *pose, i_max) {
+                    trace_object(&mut image, frame, source_mm, object, i_max);
                 }
             }
         }
     }
     image
+}
+
+/// The same image as [`render_binary`], by tracing one ray per pixel centre inside each
+/// object's projected bounds (meshes through their BVH with the watertight triangle test).
+pub fn render_binary_traced(
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    objects: &[Object],
+    i_max: u16,
+) -> Vec<u16> {
+    let [w, h] = frame.pixels;
+    let mut image = vec![0u16; w as usize * h as usize];
+    for object in objects {
+        trace_object(&mut image, frame, source_mm, object, i_max);
+    }
+    image
+}
+
+/// Traces `object` over its projected bounds, setting `i_max` where its rays are blocked.
+fn trace_object(
+    image: &mut [u16],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    object: &Object,
+    i_max: u16,
+) {
+    let w = frame.pixels[0];
+    let (lo, hi) = object.local_bounds();
+    let Some((i0, i1, j0, j1)) = pixel_bounds(frame, source_mm, object.pose(), lo, hi) else {
+        return;
+    };
+    for j in j0..j1 {
+        for i in i0..i1 {
+            let px = &mut image[j as usize * w as usize + i as usize];
+            if *px == 0 && object.blocks(source_mm, frame.pixel_centre_world(i, j)) {
+                *px = i_max;
+            }
+        }
+    }
+}
+
+/// The exact bead predicate: whether the line from `source` through `target` passes within
+/// `radius_mm` of `centre_mm`.
+fn sphere_blocks(centre_mm: DVec3, radius_mm: f64, source: DVec3, target: DVec3) -> bool {
+    let d = target - source;
+    let w = centre_mm - source;
+    // Distance from the centre to the ray's line, via the cross product (no cancellation).
+    w.cross(d).length_squared() <= radius_mm * radius_mm * d.length_squared()
 }
 
 impl Object<'_> {
@@ -85,12 +153,7 @@ impl Object<'_> {
             Object::Sphere {
                 centre_mm,
                 radius_mm,
-            } => {
-                let d = target - source;
-                let w = *centre_mm - source;
-                // Distance from the centre to the ray's line, via the cross product (no cancellation).
-                w.cross(d).length_squared() <= radius_mm * radius_mm * d.length_squared()
-            }
+            } => sphere_blocks(*centre_mm, *radius_mm, source, target),
             Object::Mesh { bvh, pose } => bvh.segment_hits(
                 pose.to_local(source),
                 pose.rotation.transpose() * (target - source),
