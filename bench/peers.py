@@ -284,7 +284,12 @@ def cmd_summary(args):
         "|---|---|---|---|---|---|---|",
     ]
     for what, o, p, pv, ratio, target, met in rows:
-        tgt = "" if target is None else f"≤ {target:g}"
+        if target is None:
+            tgt = ""
+        elif target < 1:
+            tgt = f"≤ {target:g} (≥ {1 / target:g}× faster)"
+        else:
+            tgt = f"≤ {target:g}"
         lines.append(
             f"| {what} | {fmt(o)} | {p or '—'} | {fmt(pv) if p else '—'} | "
             f"{'—' if ratio is None else f'{ratio:.3f}'} | {tgt} | {met} |"

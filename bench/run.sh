@@ -94,10 +94,16 @@ if ((peers)); then
         echo "not root (or no apt-get): not installing ${apt_packages[*]}; gvxr needs them"
     fi
     venv=$work/venv
-    "$python" -m venv "$venv"
+    if ! "$python" -m venv "$venv" >"$work/venv.log" 2>&1; then
+        echo "error: cannot create a virtual environment with $python (Debian: python3-venv); no peers:"
+        tail -n 5 "$work/venv.log"
+        peers=0
+    fi
+fi
+if ((peers)); then
     "$venv/bin/pip" install -q --upgrade pip >/dev/null 2>&1 || true
     "$venv/bin/pip" install -q numpy >"$work/pip-numpy.log" 2>&1 ||
-        { echo "error: pip install numpy failed:"; tail -n 5 "$work/pip-numpy.log"; peers=0; }
+        { echo "error: pip install numpy failed; no peers:"; tail -n 5 "$work/pip-numpy.log"; peers=0; }
 fi
 if ((peers)); then
     for peer in embreex gvxr; do
