@@ -11,10 +11,6 @@ mod watertight;
 
 pub use mesh_bvh::MeshBvh;
 
-// TEMP shim for the benchmarks (branch `bench`): the BVH ray tracer under the name the
-// scan-conversion branch gives it. Drop this commit at merge.
-pub use self::render_binary as render_binary_traced;
-
 use glam::DVec3;
 
 use crate::geometry::{DetectorFrame, Pose};
