@@ -2,7 +2,8 @@
 //! traced, noised and encoded in every format, timed separately by stage. Median of 7 runs.
 //!
 //! Run with `cargo bench --bench images` (release profile, one thread: the protocol runs images
-//! in parallel, one per core).
+//! in parallel, one per core). The criterion benches of the projector and the noise, on the same
+//! run and detector, are in `benches/projector.rs`; `bench/run.sh` runs both (BENCHMARKS.md).
 
 use std::path::Path;
 use std::time::Instant;
