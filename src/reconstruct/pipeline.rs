@@ -417,20 +417,28 @@ fn find_model(
     if fit.condition_number > CN_LIMIT {
         flags.push(format!("CN > {CN_LIMIT}"));
     }
-    Ok(MeasuredPose {
-        id: String::new(),
-        position_mm: fit.pose.position_mm.to_array(),
-        rotation: Some(rotation_rows(&fit.pose.rotation)),
-        markers: vec![],
-        quality: Some(FitQuality {
+    Ok(model_pose(
+        &fit.pose,
+        FitQuality {
             beads_used: Some(found.beads_used),
             crossing_line_error_mm: Some(found.crossing_line_error_mm),
             mean_error_mm: Some(fit.mean_error_mm),
             condition_number: Some(fit.condition_number),
             flags,
             ..Default::default()
-        }),
-    })
+        },
+    ))
+}
+
+/// A model's measured pose (its id filled in by the caller) with the fit's quality.
+fn model_pose(pose: &Pose, quality: FitQuality) -> MeasuredPose {
+    MeasuredPose {
+        id: String::new(),
+        position_mm: pose.position_mm.to_array(),
+        rotation: Some(rotation_rows(&pose.rotation)),
+        markers: vec![],
+        quality: Some(quality),
+    }
 }
 
 /// Model-based RSA of one model: its shadow's outline in every calibrated view, fitted from the
@@ -466,16 +474,13 @@ fn find_model_by_outline(
     if fit.mean_distance_px > GOOD_FIT_PX {
         flags.push(format!("contour distance > {GOOD_FIT_PX} px"));
     }
-    Ok(MeasuredPose {
-        id: String::new(),
-        position_mm: fit.pose.position_mm.to_array(),
-        rotation: Some(rotation_rows(&fit.pose.rotation)),
-        markers: vec![],
-        quality: Some(FitQuality {
+    Ok(model_pose(
+        &fit.pose,
+        FitQuality {
             contour_distance_px: Some(fit.mean_distance_px),
             contour_points: Some(fit.points_used),
             flags,
             ..Default::default()
-        }),
-    })
+        },
+    ))
 }
