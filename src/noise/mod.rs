@@ -42,9 +42,11 @@ pub fn add_noise_row(row: &mut [u16], row_index: u32, level: f64, i_max: u16, ke
     }
     let poisson = Poisson::new(level * f64::from(i_max));
     let mut rng = key.row_rng(row_index);
+    // One sample per pixel, in order (`fill` = `sample` once per pixel, only faster).
+    let mut samples = vec![0u64; row.len()];
+    poisson.fill(&mut rng, &mut samples);
     let max = u64::from(i_max);
-    for px in row.iter_mut() {
-        let sample = poisson.sample(&mut rng);
+    for (px, &sample) in row.iter_mut().zip(&samples) {
         if *px == 0 {
             *px = sample.min(max) as u16;
         }
