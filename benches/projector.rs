@@ -6,8 +6,9 @@
 //! - `calibration`, `model`, `sphere`: one image each.
 //!   - `binary_1t`: `trace::render_binary` (the default projector) in a 1-thread rayon pool.
 //!   - `traced_1t`: `trace::render_binary_traced` (the BVH ray tracer), 1 thread.
-//!   - `binary_noise`: `render_binary` then `noise::add_noise`, with the default rayon pool (all
-//!     cores), as the protocol does per image.
+//!   - `binary_noise`: a finished noisy image, `simulate::noisy_image` (the projection and the
+//!     noise field at once, then overlaid), with the default rayon pool (all cores), as the
+//!     protocol makes each image.
 //! - `model` also has `mesh_binary_1t` and `mesh_traced_1t`: the femoral component's mesh alone,
 //!   without its 6 beads, which is the scene the Embree peer casts (`bench/peers.py`).
 //! - `noise`: `add_noise` alone on a clean 1440² model image (level 0.45, I_max 65535), `1t` in a
@@ -24,8 +25,8 @@ use std::time::Duration;
 
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use rayon::ThreadPool;
-use rsasim::noise;
 use rsasim::trace::{Object, render_binary, render_binary_traced};
+use rsasim::{noise, simulate};
 use scenes::{Scenes, covered_fraction};
 
 fn one_thread() -> ThreadPool {
@@ -59,9 +60,14 @@ fn image_group(c: &mut Criterion, s: &Scenes, pool: &ThreadPool, name: &str, obj
     });
     g.bench_function("binary_noise", |b| {
         b.iter(|| {
-            let mut px = render_binary(&s.frame, black_box(s.source), objects, s.i_max);
-            noise::add_noise(&mut px, s.width(), s.noise_level, s.i_max, &key);
-            px
+            simulate::noisy_image(
+                &s.frame,
+                black_box(s.source),
+                objects,
+                s.noise_level,
+                s.i_max,
+                &key,
+            )
         })
     });
     if name == "model" {

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use crate::diagnostic::Diagnostic;
 use crate::expand::{self, Run};
+use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
 use crate::output::atomic::{StagedDir, write_atomic};
 use crate::output::exr::{ExrAttr, encode_exr_with};
@@ -18,6 +19,7 @@ use crate::output::{self, FileRef, ImageTruth, Manifest, ManifestFile, Projected
 use crate::phantom::{self, PhantomModel};
 use crate::scenario::{self, ImageFormat, LoadedScenario, Scenario};
 use crate::trace::{self, MeshBvh, Object};
+use glam::DVec3;
 
 /// A scenario checked and expanded, ready to run: nothing has been written yet.
 pub struct Plan {
@@ -211,6 +213,27 @@ fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>
     Ok(out)
 }
 
+/// One noisy binary-mode image: the clean projection ([`trace::render_binary`]) and the noise
+/// field ([`noise::noise_field`]) computed at the same time on the rayon pool, then overlaid.
+/// Byte for byte the image of `render_binary` followed by [`noise::add_noise`], in less wall time
+/// when cores are free (the projection is single-threaded, the noise row-parallel).
+pub fn noisy_image(
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    objects: &[Object],
+    noise_level: f64,
+    i_max: u16,
+    key: &NoiseKey,
+) -> Vec<u16> {
+    let [w, h] = frame.pixels.map(|n| n as usize);
+    let (clean, mut field) = rayon::join(
+        || trace::render_binary(frame, source_mm, objects, i_max),
+        || noise::noise_field(w, h, noise_level, i_max, key),
+    );
+    noise::overlay(&clean, &mut field);
+    field
+}
+
 /// One run folder: every image in every format, and `truth.json`.
 fn write_run(
     s: &Scenario,
@@ -252,7 +275,6 @@ fn write_run(
         for det in &run.detectors {
             let frame = det.frame();
             let source = run.source_of(det);
-            let mut pixels = trace::render_binary(&frame, source, &objects, det.i_max());
             let key = NoiseKey::derive(
                 s.seed,
                 run.noise_level_index,
@@ -260,13 +282,7 @@ fn write_run(
                 &exposure.id,
                 &det.id,
             );
-            noise::add_noise(
-                &mut pixels,
-                det.pixels[0] as usize,
-                run.noise_level,
-                det.i_max(),
-                &key,
-            );
+            let pixels = noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key);
 
             let stem = format!("{}-{}", exposure.id, det.id);
             let mut refs = Vec::new();

@@ -84,9 +84,59 @@ pub fn add_noise(pixels: &mut [u16], width: usize, level: f64, i_max: u16, key: 
         .for_each(|(j, row)| add_noise_row(row, j as u32, level, i_max, key));
 }
 
+/// The noise field alone, `width × height`: what [`add_noise`] puts on an image with no covered
+/// pixel (every pixel `min(sample, i_max)`; all 0 when `level == 0`). With [`overlay`] it gives
+/// [`add_noise`]'s image byte for byte, and it can be drawn while the clean image is still being
+/// projected, since a background pixel's noise never depends on the mask.
+///
+/// # Panics
+/// As [`add_noise`].
+pub fn noise_field(
+    width: usize,
+    height: usize,
+    level: f64,
+    i_max: u16,
+    key: &NoiseKey,
+) -> Vec<u16> {
+    let mut field = vec![0u16; width * height];
+    add_noise(&mut field, width, level, i_max, key);
+    field
+}
+
+/// Lays a clean binary-mode image over a [`noise_field`] of the same size: every pixel the
+/// objects cover (non-zero in `clean`) takes its clean value, every other pixel keeps its noise.
+///
+/// # Panics
+/// When the two images differ in size.
+pub fn overlay(clean: &[u16], field: &mut [u16]) {
+    assert_eq!(
+        clean.len(),
+        field.len(),
+        "image and noise field differ in size"
+    );
+    for (f, &c) in field.iter_mut().zip(clean) {
+        if c != 0 {
+            *f = c;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_noise_field_overlaid_equals_noise_added() {
+        let (w, h, i_max) = (97, 41, 4095);
+        let clean = clean_image(w, h, i_max);
+        for level in [0.0, 0.002, 0.45, 0.9] {
+            let mut added = clean.clone();
+            add_noise(&mut added, w, level, i_max, &key());
+            let mut field = noise_field(w, h, level, i_max, &key());
+            overlay(&clean, &mut field);
+            assert_eq!(field, added, "level {level}");
+        }
+    }
 
     fn key() -> NoiseKey {
         NoiseKey::derive(7, 1, 3, "ap", "det_a")
