@@ -104,19 +104,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
     }
 
     // The classic Selvik calibration on the same images: lateral accuracy within the same bound.
-    let o = rsasim(
-        &["reconstruct", out.to_str().unwrap(), "--method", "selvik"],
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = evaluate(
-        &out,
-        &Options {
-            measured: MeasuredSource::PerRun("measured.json".into()),
-            confidence: Confidence::default(),
-        },
-    )
-    .unwrap();
+    let report = reconstruct_without_truth(&out, &["--method", "selvik"]);
     assert!(
         report.software.iter().any(|s| s.contains("Selvik")),
         "{:?}",
@@ -252,16 +240,7 @@ fn a_model_far_above_its_cage_is_found_in_the_uniplanar_set_up() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("uni");
     run_scenario("tests/scenarios/reconstruct_uniplanar.toml", &out, &[]);
-    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report = evaluate(
-        &out,
-        &Options {
-            measured: MeasuredSource::PerRun("measured.json".into()),
-            confidence: Confidence::default(),
-        },
-    )
-    .unwrap();
+    let report = reconstruct_without_truth(&out, &[]);
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     let rms = |c: &rsasim::evaluate::stats::Cell| c.rms;
     for (table, group, cols, bound) in [
