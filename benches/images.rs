@@ -5,13 +5,16 @@
 //! in parallel, one per core). The criterion benches of the projector and the noise, on the same
 //! run and detector, are in `benches/projector.rs`; `bench/run.sh` runs both (BENCHMARKS.md).
 
-use std::path::Path;
+#[path = "common/scenes.rs"]
+mod scenes;
+
 use std::time::Instant;
 
-use rsasim::noise::{self, NoiseKey};
+use rsasim::noise;
 use rsasim::output::{exr, tiff};
-use rsasim::simulate;
-use rsasim::trace::{MeshBvh, Object, render_binary};
+use rsasim::scenario::TiffCompression;
+use rsasim::trace::{MeshBvh, render_binary};
+use scenes::Scenes;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -19,83 +22,38 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    let plan =
-        simulate::prepare(Path::new("scenarios/biplanar.toml")).expect("biplanar.toml is valid");
-    let s = &plan.loaded.scenario;
-    // Run n2-r07: noise level 0.45.
-    let run = plan
-        .runs
-        .iter()
-        .find(|r| r.id == "n2-r07")
-        .expect("run n2-r07");
-    let det = &run.detectors[0];
-    let frame = det.frame();
-    let source = run.source_of(det);
+    // Run n2-r07 (noise level 0.45), detector det1: the scenes of the criterion benches.
+    let s = Scenes::load();
     let bvh_start = Instant::now();
-    let femur = plan.models.iter().position(|m| m.id == "femur").unwrap();
-    let bvh = MeshBvh::new(plan.models[femur].mesh.as_ref().unwrap());
+    std::hint::black_box(MeshBvh::new(&s.femur.mesh));
     println!(
         "femur BVH build ({} triangles): {:.1} ms",
-        plan.models[femur].mesh.as_ref().unwrap().triangles.len(),
+        s.femur.mesh.triangles.len(),
         bvh_start.elapsed().as_secs_f64() * 1e3
     );
-
-    let box_index = plan.models.iter().position(|m| m.id == "box").unwrap();
-    let calibration: Vec<Object> = run.phantoms[box_index]
-        .markers
-        .iter()
-        .map(|m| Object::Sphere {
-            centre_mm: m.position_mm,
-            radius_mm: m.diameter_mm / 2.0,
-        })
-        .collect();
-    let mut model: Vec<Object> = run.phantoms[femur]
-        .markers
-        .iter()
-        .map(|m| Object::Sphere {
-            centre_mm: m.position_mm,
-            radius_mm: m.diameter_mm / 2.0,
-        })
-        .collect();
-    model.push(Object::Mesh {
-        bvh: &bvh,
-        pose: run.phantoms[femur].pose(),
-    });
-
-    for (name, objects) in [("calibration", &calibration), ("model", &model)] {
+    let [w, h] = s.frame.pixels;
+    for (name, objects) in [("calibration", s.calibration()), ("model", s.model())] {
         let (mut trace_ms, mut noise_ms, mut tiff_ms, mut exr_ms) =
             (vec![], vec![], vec![], vec![]);
         let mut covered = 0;
         for _ in 0..7 {
             let t = Instant::now();
-            let mut px = render_binary(&frame, source, objects, det.i_max());
+            let mut px = render_binary(&s.frame, s.source, &objects, s.i_max);
             trace_ms.push(t.elapsed().as_secs_f64() * 1e3);
-            covered = px.iter().filter(|&&p| p == det.i_max()).count();
+            covered = px.iter().filter(|&&p| p == s.i_max).count();
             let t = Instant::now();
-            let key = NoiseKey::derive(s.seed, run.noise_level_index, run.run_index, name, &det.id);
-            noise::add_noise(
-                &mut px,
-                det.pixels[0] as usize,
-                run.noise_level,
-                det.i_max(),
-                &key,
-            );
+            let key = s.noise_key(name);
+            noise::add_noise(&mut px, s.width(), s.noise_level, s.i_max, &key);
             noise_ms.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
-            let bytes = tiff::encode_tiff(
-                1440,
-                1440,
-                &px,
-                s.output.tiff_compression,
-                "bench",
-                "rsasim",
-            )
-            .unwrap();
+            // biplanar.toml's TIFF compression.
+            let bytes =
+                tiff::encode_tiff(w, h, &px, TiffCompression::Deflate, "bench", "rsasim").unwrap();
             tiff_ms.push(t.elapsed().as_secs_f64() * 1e3);
             std::hint::black_box(bytes);
             let t = Instant::now();
             let f: Vec<f32> = px.iter().map(|&p| p as f32).collect();
-            let bytes = exr::encode_exr(1440, 1440, &f, &[]).unwrap();
+            let bytes = exr::encode_exr(w, h, &f, &[]).unwrap();
             exr_ms.push(t.elapsed().as_secs_f64() * 1e3);
             std::hint::black_box(bytes);
         }
