@@ -795,20 +795,10 @@ mod tests {
             assert_eq!(unit(a.next_u64()).to_bits(), uniform(&mut b).to_bits());
         }
         for x in [0, 1, 2047, 2048, u64::MAX, 1 << 63] {
-            struct Fixed(u64);
-            impl rand_core::TryRng for Fixed {
-                type Error = core::convert::Infallible;
-                fn try_next_u32(&mut self) -> Result<u32, Self::Error> {
-                    Ok(self.0 as u32)
-                }
-                fn try_next_u64(&mut self) -> Result<u64, Self::Error> {
-                    Ok(self.0)
-                }
-                fn try_fill_bytes(&mut self, _: &mut [u8]) -> Result<(), Self::Error> {
-                    unimplemented!()
-                }
-            }
-            assert_eq!(unit(x).to_bits(), uniform(&mut Fixed(x)).to_bits());
+            assert_eq!(
+                unit(x).to_bits(),
+                uniform(&mut crate::noise::stream::FixedRng(x)).to_bits()
+            );
         }
     }
 

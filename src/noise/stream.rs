@@ -94,6 +94,24 @@ pub fn uniform(rng: &mut impl Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * SCALE
 }
 
+/// A test generator that returns the same `u64` every time (for checking [`uniform`]'s edges).
+#[cfg(test)]
+pub(crate) struct FixedRng(pub u64);
+
+#[cfg(test)]
+impl rand_core::TryRng for FixedRng {
+    type Error = core::convert::Infallible;
+    fn try_next_u32(&mut self) -> Result<u32, Self::Error> {
+        Ok(self.0 as u32)
+    }
+    fn try_next_u64(&mut self) -> Result<u64, Self::Error> {
+        Ok(self.0)
+    }
+    fn try_fill_bytes(&mut self, _: &mut [u8]) -> Result<(), Self::Error> {
+        unimplemented!("FixedRng gives whole u64s only")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -178,23 +196,10 @@ mod tests {
 
     #[test]
     fn uniform_is_53_bit_and_in_unit_interval() {
-        struct Fixed(u64);
-        impl rand_core::TryRng for Fixed {
-            type Error = core::convert::Infallible;
-            fn try_next_u32(&mut self) -> Result<u32, Self::Error> {
-                Ok(self.0 as u32)
-            }
-            fn try_next_u64(&mut self) -> Result<u64, Self::Error> {
-                Ok(self.0)
-            }
-            fn try_fill_bytes(&mut self, _: &mut [u8]) -> Result<(), Self::Error> {
-                unimplemented!()
-            }
-        }
-        assert_eq!(uniform(&mut Fixed(0)), 0.0);
-        assert_eq!(uniform(&mut Fixed(u64::MAX)), 1.0 - 2f64.powi(-53));
-        assert_eq!(uniform(&mut Fixed(1 << 63)), 0.5);
-        assert_eq!(uniform(&mut Fixed((1 << 11) - 1)), 0.0);
+        assert_eq!(uniform(&mut FixedRng(0)), 0.0);
+        assert_eq!(uniform(&mut FixedRng(u64::MAX)), 1.0 - 2f64.powi(-53));
+        assert_eq!(uniform(&mut FixedRng(1 << 63)), 0.5);
+        assert_eq!(uniform(&mut FixedRng((1 << 11) - 1)), 0.0);
         let mut rng = NoiseKey::derive(0, 0, 0, "", "").row_rng(0);
         let mean = (0..100_000).map(|_| uniform(&mut rng)).sum::<f64>() / 100_000.0;
         assert!((mean - 0.5).abs() < 5.0 * (1.0 / 12.0f64 / 100_000.0).sqrt());
