@@ -393,13 +393,23 @@ fn scored_output() -> Scored {
     }
 }
 
-/// The first cell of a CSV report that reads as a number but is not finite (`NaN`, `inf`).
+/// The first cell of `report.csv` that is infinite, or NaN in a row with N ≥ 2 (NaN is the
+/// documented value of the precision and SD of a cell with a single residual).
 fn non_finite_cell(csv: &str) -> Option<String> {
-    csv.lines().enumerate().find_map(|(n, line)| {
-        line.split(',')
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next()?.split(',').collect();
+    let n_col = header.iter().position(|h| *h == "n")?;
+    lines.enumerate().find_map(|(k, line)| {
+        let cells: Vec<&str> = line
+            .split(',')
             .map(|c| c.trim().trim_matches('"'))
-            .find(|c| c.parse::<f64>().is_ok_and(|x| !x.is_finite()))
-            .map(|c| format!("line {}: {c}", n + 1))
+            .collect();
+        let single = cells.get(n_col).and_then(|n| n.parse::<u64>().ok()) < Some(2);
+        cells
+            .iter()
+            .filter_map(|c| c.parse::<f64>().ok())
+            .find(|x| x.is_infinite() || (x.is_nan() && !single))
+            .map(|x| format!("line {}: {x} in `{line}`", k + 2))
     })
 }
 
