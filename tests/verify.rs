@@ -51,7 +51,10 @@ fn a_clean_output_verifies_and_results_and_reports_are_not_covered() {
     let (_tmp, out) = output();
     let (code, text) = verify(&out);
     assert_eq!(code, 0, "{text}");
-    assert!(text.contains("0 problem(s)") && text.contains("VERIFIED"), "{text}");
+    assert!(
+        text.contains("0 problem(s)") && text.contains("VERIFIED"),
+        "{text}"
+    );
     // What a software under test and the report add is reported, not a problem.
     std::fs::write(out.join("runs/n0-r00/measured.json"), "{}").unwrap();
     std::fs::create_dir(out.join("report")).unwrap();
@@ -62,7 +65,10 @@ fn a_clean_output_verifies_and_results_and_reports_are_not_covered() {
         text.contains("runs/n0-r00/measured.json: not covered by the manifest"),
         "{text}"
     );
-    assert!(text.contains("report/: not covered by the manifest"), "{text}");
+    assert!(
+        text.contains("report/: not covered by the manifest"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -144,7 +150,10 @@ fn evaluate_refuses_a_missing_truth_and_an_edited_scenario() {
     std::fs::remove_file(&truth).unwrap();
     let (code, err) = evaluate(&out);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains(&format!("{}: missing", truth.display())), "{err}");
+    assert!(
+        err.contains(&format!("{}: missing", truth.display())),
+        "{err}"
+    );
 
     let (_tmp2, out2) = output();
     let scenario = out2.join("scenario.toml");
