@@ -13,7 +13,7 @@ use rsasim::reconstruct::{Method, ModelMethod};
 #[derive(Debug, Parser)]
 #[command(
     name = "rsasim",
-    version,
+    version = rsasim::output::VERSION_LINE,
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]
@@ -38,6 +38,12 @@ pub struct RunArgs {
     /// Replace the output folder if it already exists (it is swapped in only once complete).
     #[arg(long)]
     pub force: bool,
+    /// Blind layout: write the truth (every truth.json, the full scenario with its seed, and a
+    /// manifest binding the images folder by hash) into DIR, and into --out only what the
+    /// software under test may see: images, phantoms/ and the nominal set-up (no seed, no random
+    /// ranges). DIR must lie outside the --out folder. Score with `rsasim evaluate OUT --truth DIR`.
+    #[arg(long, value_name = "DIR")]
+    pub truth_dir: Option<PathBuf>,
 }
 
 /// The subcommands.
@@ -86,6 +92,23 @@ pub enum Command {
         /// Folder the reports are written to. Default: OUT/report.
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
+        /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
+        /// is then its images folder. Both manifests and the binding between them are verified.
+        #[arg(long, value_name = "DIR")]
+        truth: Option<PathBuf>,
+    },
+    /// Check an output folder against its manifest.json: every listed file present, a regular
+    /// file, of the recorded size and SHA-256; the manifest's own hash; files present but not
+    /// listed. Prints one line per problem and a summary; exit 0 when everything verifies, 2 when
+    /// anything does not. Given a truth folder of the blind layout, it also checks the images
+    /// folder bound to it (found beside it, or given with --images).
+    Verify {
+        /// The output folder (or truth folder) to check.
+        out: PathBuf,
+        /// The images folder bound to the truth folder OUT, when it is not beside it under the
+        /// name it was written with.
+        #[arg(long, value_name = "DIR")]
+        images: Option<PathBuf>,
     },
     /// Run rsasim's reference RSA program on an output folder: calibrate every beamline from the
     /// box beads, find each model from its beads, and write measured.json into every run folder.

@@ -44,10 +44,28 @@ fn main() -> ExitCode {
             sided,
             format,
             report,
-        }) => evaluate(&out, measured, csv, confidence, &sided, &format, report),
+            truth,
+        }) => evaluate(
+            &out,
+            truth.as_deref(),
+            measured,
+            csv,
+            confidence,
+            &sided,
+            &format,
+            report,
+        ),
+        Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario).and_then(|plan| run(&plan, cli.run.out, cli.run.force))
+            prepare(&scenario).and_then(|plan| {
+                run(
+                    &plan,
+                    cli.run.out,
+                    cli.run.truth_dir.as_deref(),
+                    cli.run.force,
+                )
+            })
         }
     };
     match result {
@@ -73,14 +91,24 @@ fn report_errors(errors: &[Diagnostic]) -> u8 {
     2
 }
 
-fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), u8> {
+fn run(
+    plan: &Plan,
+    out: Option<std::path::PathBuf>,
+    truth_dir: Option<&std::path::Path>,
+    force: bool,
+) -> Result<(), u8> {
     let out = out.unwrap_or_else(|| std::path::Path::new("out").join(&plan.loaded.scenario.name));
-    if out.exists() && !force {
-        eprintln!(
-            "error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere",
-            out.display()
-        );
-        return Err(2);
+    if let Some(truth) = truth_dir {
+        simulate::check_truth_dir(&out, truth).map_err(|e| report_errors(&[e]))?;
+    }
+    for dir in std::iter::once(out.as_path()).chain(truth_dir) {
+        if dir.exists() && !force {
+            eprintln!(
+                "error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere",
+                dir.display()
+            );
+            return Err(2);
+        }
     }
     let bar = ProgressBar::new(plan.image_count() as u64);
     bar.set_style(
@@ -88,11 +116,12 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
             .expect("valid template"),
     );
     let start = Instant::now();
-    let summary = simulate::simulate(plan, &out, force, &|| bar.inc(1)).map_err(|e| {
-        bar.abandon();
-        eprintln!("error: writing {} failed: {e}", out.display());
-        1
-    })?;
+    let summary =
+        simulate::simulate(plan, &out, truth_dir, force, &|| bar.inc(1)).map_err(|e| {
+            bar.abandon();
+            eprintln!("error: writing {} failed: {e}", out.display());
+            1
+        })?;
     bar.finish_and_clear();
     eprintln!(
         "rsasim: {} runs, {} image files in {:.1} s -> {}",
@@ -129,8 +158,20 @@ fn reconstruct(
     }
 }
 
+fn verify(out: &std::path::Path, images: Option<&std::path::Path>) -> Result<(), u8> {
+    let results = rsasim::output::verify::verify(out, images);
+    print!("{}", rsasim::output::verify::render(&results));
+    if results.iter().all(|v| v.ok()) {
+        Ok(())
+    } else {
+        Err(2)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn evaluate(
     out: &std::path::Path,
+    truth: Option<&std::path::Path>,
     measured: String,
     csv: Option<std::path::PathBuf>,
     confidence: f64,
@@ -166,7 +207,8 @@ fn evaluate(
         },
     };
     let start = Instant::now();
-    let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
+    let result = evaluate::evaluate_with_truth(out, truth, &options)
+        .map_err(|errors| report_errors(&errors))?;
     let dir = report_dir.unwrap_or_else(|| out.join("report"));
     let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
         eprintln!(

@@ -15,11 +15,16 @@ use crate::noise::{self, NoiseKey};
 use crate::output::atomic::{StagedDir, write_atomic};
 use crate::output::exr::{ExrAttr, encode_exr_with};
 use crate::output::tiff::encode_tiff;
-use crate::output::{self, FileRef, ImageTruth, Manifest, ManifestFile, ProjectedMarker, Truth};
+use crate::output::{
+    self, FileRef, ImageTruth, ImagesBinding, Layout, Manifest, ManifestFile, ProjectedMarker,
+    Truth,
+};
 use crate::phantom::{self, PhantomModel};
+use crate::scenario::hex;
 use crate::scenario::{self, ImageFormat, LoadedScenario, Scenario};
 use crate::trace::{self, MeshBvh, Object};
 use glam::DVec3;
+use sha2::{Digest, Sha256};
 
 /// A scenario checked and expanded, ready to run: nothing has been written yet.
 pub struct Plan {
@@ -78,14 +83,22 @@ pub struct Summary {
 
 /// Writes the whole protocol into `out_dir` (refused if it exists, unless `force`). `progress`
 /// is called once per finished image (exposure × detector, all formats).
+///
+/// With `truth_dir` (the blind layout, [`check_truth_dir`] first), `out_dir` gets only what the
+/// software under test may see (images, `phantoms/`, the nominal set-up without seed or random
+/// ranges) and `truth_dir` the truth: every `runs/<id>/truth.json`, the full scenario as run with
+/// its `phantoms/`, and a manifest that binds `out_dir` by the SHA-256 of its manifest file.
 pub fn simulate(
     plan: &Plan,
     out_dir: &Path,
+    truth_dir: Option<&Path>,
     force: bool,
     progress: &(dyn Fn() + Sync),
 ) -> std::io::Result<Summary> {
     let staged = StagedDir::create(out_dir, force)?;
+    let truth_staged = truth_dir.map(|t| StagedDir::create(t, force)).transpose()?;
     let root = staged.path();
+    let truth_root = truth_staged.as_ref().map(StagedDir::path);
     let s = &plan.loaded.scenario;
     let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
         .models
@@ -93,36 +106,114 @@ pub fn simulate(
         .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
         .collect();
 
-    let mut files = write_phantoms(plan, root)?;
-    let per_run: Vec<Vec<ManifestFile>> = plan
+    let mut files = write_phantoms(plan, root, truth_root.is_some())?;
+    let per_run: Vec<RunFiles> = plan
         .runs
         .par_iter()
-        .map(|run| write_run(s, &plan.models, &bvhs, run, root, progress))
+        .map(|run| write_run(s, &plan.models, &bvhs, run, root, truth_root, progress))
         .collect::<std::io::Result<_>>()?;
-    let image_files = per_run
-        .iter()
-        .flatten()
-        .filter(|f| !f.path.ends_with("truth.json"))
-        .count();
-    files.extend(per_run.into_iter().flatten());
-    files.sort_by(|a, b| a.path.cmp(&b.path));
-
-    let manifest = Manifest {
-        format: output::MANIFEST_FORMAT.into(),
-        program: output::program(),
-        scenario: s.name.clone(),
-        scenario_sha256: plan.loaded.sha256.clone(),
-        seed: s.seed,
-        runs: plan.runs.len(),
-        files,
-    };
-    write_atomic(&root.join("manifest.json"), &json_bytes(&manifest))?;
+    let image_files = per_run.iter().map(|r| r.images.len()).sum();
+    let mut truth_files = Vec::new();
+    for r in per_run {
+        files.extend(r.images);
+        truth_files.push(r.truth);
+    }
+    let mut manifest = new_manifest(plan, Vec::new());
+    match truth_root {
+        None => {
+            files.extend(truth_files);
+            manifest.files = sorted(files);
+        }
+        Some(truth_root) => {
+            let images = Manifest {
+                layout: Some(Layout::Images),
+                scenario_sha256: None,
+                seed: None,
+                files: sorted(files),
+                ..manifest.clone()
+            };
+            let images_bytes = images.to_bytes();
+            write_atomic(&root.join("manifest.json"), &images_bytes)?;
+            truth_files.extend(write_phantoms(plan, truth_root, false)?);
+            manifest.layout = Some(Layout::Truth);
+            manifest.images = Some(ImagesBinding {
+                manifest_sha256: hex(&Sha256::digest(&images_bytes)),
+                folder: out_dir
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+            });
+            manifest.files = sorted(truth_files);
+        }
+    }
+    let manifest_root = truth_root.unwrap_or(root);
+    write_atomic(&manifest_root.join("manifest.json"), &manifest.to_bytes())?;
     let out_dir = staged.commit()?;
+    if let Some(truth) = truth_staged {
+        truth.commit()?;
+    }
     Ok(Summary {
         out_dir,
         image_files,
         runs: plan.runs.len(),
     })
+}
+
+/// The manifest of an ordinary output folder with `files`: program, exact build, output-format
+/// version, scenario, seed.
+fn new_manifest(plan: &Plan, files: Vec<ManifestFile>) -> Manifest {
+    let s = &plan.loaded.scenario;
+    Manifest {
+        format: output::MANIFEST_FORMAT.into(),
+        manifest_sha256: String::new(),
+        program: output::program(),
+        build: Some(output::build()),
+        output_format: output::OUTPUT_FORMAT,
+        layout: None,
+        scenario: s.name.clone(),
+        scenario_sha256: Some(plan.loaded.sha256.clone()),
+        seed: Some(s.seed),
+        runs: plan.runs.len(),
+        images: None,
+        files,
+    }
+}
+
+fn sorted(mut files: Vec<ManifestFile>) -> Vec<ManifestFile> {
+    files.sort_by(|a, b| a.path.cmp(&b.path));
+    files
+}
+
+/// Checks a blind layout's truth folder against the images folder `out_dir`: they must differ
+/// and neither may lie inside the other (the truth would be handed out with the images).
+pub fn check_truth_dir(out_dir: &Path, truth_dir: &Path) -> Result<(), Diagnostic> {
+    let absolute = |p: &Path| {
+        std::path::absolute(p)
+            .map(|a| {
+                a.components()
+                    .filter(|c| !matches!(c, std::path::Component::CurDir))
+                    .collect::<PathBuf>()
+            })
+            .unwrap_or_else(|_| p.to_path_buf())
+    };
+    let (out, truth) = (absolute(out_dir), absolute(truth_dir));
+    if truth.starts_with(&out) || out.starts_with(&truth) {
+        return Err(Diagnostic::file_error(
+            truth_dir,
+            format!(
+                "the truth folder must lie outside the images folder {} (and not contain it)",
+                out_dir.display()
+            ),
+        )
+        .with_help("e.g. --out blind/knee --truth-dir truth/knee: hand out only blind/knee"));
+    }
+    if truth.file_name().is_none() {
+        return Err(Diagnostic::file_error(
+            truth_dir,
+            "give a folder name for the truth (e.g. --truth-dir out/knee-truth)",
+        ));
+    }
+    Ok(())
 }
 
 /// Pretty JSON with a final newline.
@@ -151,7 +242,9 @@ fn slash_path(p: &Path) -> String {
 
 /// `phantoms/`: bead tables (CSV, each phantom's local frame; the box's is the box frame) and
 /// mesh files, plus `scenario.toml` as run, pointing at those copies.
-fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>> {
+/// With `nominal`, the scenario is the nominal set-up of a blind images folder: no seed, no random
+/// ranges, no hash of the source file ([`nominal_scenario_text`]).
+fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Vec<ManifestFile>> {
     let dir = root.join("phantoms");
     std::fs::create_dir_all(&dir)?;
     let mut out = Vec::new();
@@ -199,18 +292,51 @@ fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>
             mesh.file = format!("phantoms/{name}");
         }
     }
-    let text = format!(
-        "# The scenario as run by {} (defaults resolved, mesh paths pointing at phantoms/).\n# Source file SHA-256: {}\n\n{}",
-        output::program(),
-        plan.loaded.sha256,
-        toml::to_string_pretty(&resolved).expect("scenario serialises")
-    );
+    let text = if nominal {
+        nominal_scenario_text(&resolved)
+    } else {
+        format!(
+            "# The scenario as run by {} (defaults resolved, mesh paths pointing at phantoms/).\n# Source file SHA-256: {}\n\n{}",
+            output::program(),
+            plan.loaded.sha256,
+            toml::to_string_pretty(&resolved).expect("scenario serialises")
+        )
+    };
     out.push(manifest_entry(
         root,
         &root.join("scenario.toml"),
         text.as_bytes(),
     )?);
     Ok(out)
+}
+
+/// The nominal set-up of a blind images folder as TOML: the scenario as run without `seed` and
+/// without any `randomize` table (the random ranges), so neither the draws nor the noise can be
+/// regenerated from it. `rsasim reconstruct` reads it like any `scenario.toml` (a missing seed
+/// reads as 0, missing ranges as none).
+pub fn nominal_scenario_text(resolved: &Scenario) -> String {
+    let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
+    value.remove("seed");
+    for list in ["sources", "detectors", "phantoms"] {
+        if let Some(toml::Value::Array(items)) = value.get_mut(list) {
+            for item in items {
+                if let toml::Value::Table(t) = item {
+                    t.remove("randomize");
+                }
+            }
+        }
+    }
+    format!(
+        "# The nominal set-up written by {} for the software under test (defaults resolved, mesh\n# paths pointing at phantoms/; random ranges left out). The truth is kept in a separate folder.\n\n{}",
+        output::program(),
+        toml::to_string_pretty(&value).expect("TOML tables serialise")
+    )
+}
+
+/// The files one run wrote: its images (all formats) and its `truth.json`.
+struct RunFiles {
+    images: Vec<ManifestFile>,
+    truth: ManifestFile,
 }
 
 /// One noisy binary-mode image: the clean projection ([`trace::render_binary`]) and the noise
@@ -234,15 +360,16 @@ pub fn noisy_image(
     field
 }
 
-/// One run folder: every image in every format, and `truth.json`.
+/// One run folder: every image in every format, and `truth.json` (in `truth_root` when given).
 fn write_run(
     s: &Scenario,
     models: &[PhantomModel],
     bvhs: &[Option<Arc<MeshBvh>>],
     run: &Run,
     root: &Path,
+    truth_root: Option<&Path>,
     progress: &(dyn Fn() + Sync),
-) -> std::io::Result<Vec<ManifestFile>> {
+) -> std::io::Result<RunFiles> {
     let dir = root.join("runs").join(&run.id);
     std::fs::create_dir_all(&dir)?;
     let mut files = Vec::new();
@@ -330,12 +457,18 @@ fn write_run(
         run: run.clone(),
         images,
     };
-    files.push(manifest_entry(
-        root,
-        &dir.join("truth.json"),
+    let truth_root = truth_root.unwrap_or(root);
+    let truth_dir = truth_root.join("runs").join(&run.id);
+    std::fs::create_dir_all(&truth_dir)?;
+    let truth = manifest_entry(
+        truth_root,
+        &truth_dir.join("truth.json"),
         &json_bytes(&truth),
-    )?);
-    Ok(files)
+    )?;
+    Ok(RunFiles {
+        images: files,
+        truth,
+    })
 }
 
 fn encode_image(

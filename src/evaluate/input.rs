@@ -50,7 +50,17 @@ pub struct RunMeasurement {
 
 /// Every run folder's `truth.json` under `out/runs`, in protocol order.
 pub fn load_truths(out: &Path) -> Result<Vec<TruthRun>, Vec<Diagnostic>> {
-    let runs = out.join("runs");
+    load_truths_from(out, out)
+}
+
+/// Every `truth_root/runs/<id>/truth.json`, in protocol order, each with its run folder under
+/// `results_root/runs/<id>` (where the software under test wrote its results). The two roots
+/// differ in the blind layout (truth folder, images folder).
+pub fn load_truths_from(
+    truth_root: &Path,
+    results_root: &Path,
+) -> Result<Vec<TruthRun>, Vec<Diagnostic>> {
+    let runs = truth_root.join("runs");
     let entries = std::fs::read_dir(&runs).map_err(|e| {
         vec![Diagnostic::file_error(&runs, format!("cannot list the run folders: {e}"))
             .with_help("give the output folder of `rsasim SCENARIO.toml` (it holds manifest.json and runs/)")]
@@ -63,6 +73,7 @@ pub fn load_truths(out: &Path) -> Result<Vec<TruthRun>, Vec<Diagnostic>> {
             continue;
         }
         let file = dir.join("truth.json");
+        let dir = results_root.join("runs").join(entry.file_name());
         match std::fs::read(&file) {
             Ok(bytes) => match serde_json::from_slice::<Truth>(&bytes) {
                 Ok(truth) => out_runs.push(TruthRun { dir, truth }),

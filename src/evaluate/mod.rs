@@ -13,6 +13,7 @@ pub mod residual;
 pub mod rotation;
 pub mod stats;
 pub mod table;
+pub mod truth_check;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -24,7 +25,7 @@ use crate::diagnostic::Diagnostic;
 use crate::output;
 use crate::scenario::{self, hex};
 use assemble::{MtpmPoints, Scored, assemble};
-use input::{RunMeasurement, load_measured_csv, load_measured_json, load_truths};
+use input::{RunMeasurement, load_measured_csv, load_measured_json, load_truths_from};
 use stats::Confidence;
 use table::Report;
 
@@ -49,8 +50,26 @@ pub struct Options {
 /// Scores every run of the output folder `out`. Runs without results are listed as excluded;
 /// malformed results are errors naming file, line and field.
 pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>> {
+    evaluate_with_truth(out, None, options)
+}
+
+/// [`evaluate`], with the truth read from `truth_dir` when given (the blind layout: `out` is the
+/// images folder holding the results, `truth_dir` its truth folder). The truth (every
+/// `truth.json` and `scenario.toml`) is verified against its manifest first, and in the blind
+/// layout the binding of both folders ([`truth_check::verify_truth`]): a modified or missing
+/// truth file is an error naming it.
+pub fn evaluate_with_truth(
+    out: &Path,
+    truth_dir: Option<&Path>,
+    options: &Options,
+) -> Result<Report, Vec<Diagnostic>> {
     output::check_output_folder(out)?;
-    let truths = load_truths(out)?;
+    if let Some(t) = truth_dir {
+        output::check_output_folder(t)?;
+    }
+    let truth_root = truth_dir.unwrap_or(out);
+    truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
+    let truths = load_truths_from(truth_root, out)?;
     let measurements: BTreeMap<String, RunMeasurement> = match &options.measured {
         MeasuredSource::Csv(file) => load_measured_csv(file, &truths)?,
         MeasuredSource::PerRun(name) => {
@@ -84,7 +103,7 @@ pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>
             .with_help("run the software under test first (e.g. `rsasim reconstruct OUT`), or point --measured / --csv at its results")]);
     }
 
-    let scenario_file = out.join("scenario.toml");
+    let scenario_file = truth_root.join("scenario.toml");
     let loaded = scenario::load(&scenario_file)?;
     let mtpm_points = mtpm_points(&loaded, &truths);
     let scored: Vec<Scored> = truths
@@ -96,8 +115,13 @@ pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>
         .collect();
     let (tables, mtpm, group_analyses, excluded, runs_scored) =
         assemble(&scored, &mtpm_points, &options.confidence);
-    let manifest_sha256 = std::fs::read(out.join("manifest.json"))
-        .map(|b| hex(&Sha256::digest(&b)))
+    let manifest_sha256 = std::fs::read(truth_root.join("manifest.json"))
+        .map(|b| {
+            format!(
+                "{} (every truth.json and scenario.toml verified against it)",
+                hex(&Sha256::digest(&b))
+            )
+        })
         .unwrap_or_else(|_| "(no manifest.json)".into());
     let mut software: Vec<String> = measurements.values().map(|m| m.software.clone()).collect();
     software.sort();

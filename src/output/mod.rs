@@ -7,8 +7,11 @@ pub mod manifest;
 pub mod measured;
 pub mod tiff;
 pub mod truth;
+pub mod verify;
 
-pub use manifest::{MANIFEST_FORMAT, Manifest, ManifestFile};
+pub use manifest::{
+    Build, ImagesBinding, Layout, MANIFEST_FORMAT, Manifest, ManifestFile, OUTPUT_FORMAT,
+};
 pub use measured::{MEASURED_FORMAT, Measured};
 pub use truth::{FileRef, ImageTruth, ProjectedMarker, TRUTH_FORMAT, Truth};
 
@@ -31,10 +34,26 @@ pub fn check_output_folder(
     .with_help("give the folder that `rsasim SCENARIO.toml --out DIR` wrote (by default out/<scenario name>)")])
 }
 
-/// `rsasim <version>`, as written into every file.
+/// `rsasim <version>`, as written into every file. Image files and `truth.json` carry only this
+/// (not the commit), so that their bytes change only when the version does; the manifest carries
+/// the exact [`build`].
 pub fn program() -> String {
     format!("rsasim {}", env!("CARGO_PKG_VERSION"))
 }
+
+/// The exact build of this program: crate version, git commit (or `unknown` when built without
+/// git) and whether the sources differed from that commit (recorded by `build.rs`).
+pub fn build() -> Build {
+    Build {
+        version: env!("CARGO_PKG_VERSION").into(),
+        commit: env!("RSASIM_BUILD_COMMIT").into(),
+        dirty: env!("RSASIM_BUILD_DIRTY").into(),
+    }
+}
+
+/// What `rsasim --version` prints after the name: `<version> (<short commit>[, dirty])`, or
+/// `<version> (unknown build)` without git.
+pub const VERSION_LINE: &str = env!("RSASIM_VERSION_LINE");
 
 /// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`.
 pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
