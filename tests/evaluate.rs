@@ -735,3 +735,20 @@ fn a_folder_mixing_runs_of_different_scenarios_is_an_error_naming_the_run() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_missing_mtpm_column_is_explained_in_the_report_and_on_stderr() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("mb");
+    run_scenario("tests/scenarios/model_based.toml", &out, &[]);
+    write_all(&out, "measured.json", &|m| m);
+    // The bead-less femur's MTPM uses its mesh's corners; with an unreadable mesh the column
+    // used to disappear without a word.
+    std::fs::write(out.join("phantoms/femur.glb"), b"not a mesh").unwrap();
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let said = "no MTPM column for model femur: it has no beads and its mesh could not be built";
+    assert!(stderr.contains(&format!("note: {said}")), "{stderr}");
+    let md = std::fs::read_to_string(out.join("report-measured/report.md")).unwrap();
+    assert!(md.contains("## Notes") && md.contains(said), "{md}");
+}

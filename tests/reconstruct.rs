@@ -339,13 +339,13 @@ fn reconstruct_never_replaces_another_softwares_results() {
     // A vendor's file (and an unparsable one) under the name reconstruct is told to write.
     let vendor =
         b"{\"format\": \"rsasim-measured/1\", \"run\": \"x\", \"software\": \"VendorRSA\"}";
-    std::fs::write(runs[0].0.join("mine.json"), vendor).unwrap();
-    std::fs::write(runs[1].0.join("mine.json"), b"not json").unwrap();
+    std::fs::write(runs[0].0.join("measured-mine.json"), vendor).unwrap();
+    std::fs::write(runs[1].0.join("measured-mine.json"), b"not json").unwrap();
     let args = [
         "reconstruct",
         out.to_str().unwrap(),
         "--measured",
-        "mine.json",
+        "measured-mine.json",
     ];
     let o = rsasim(&args, &[]);
     let stderr = String::from_utf8_lossy(&o.stderr);
@@ -353,13 +353,16 @@ fn reconstruct_never_replaces_another_softwares_results() {
     assert!(stderr.contains("--overwrite"), "{stderr}");
     for (dir, _) in &runs {
         assert!(
-            stderr.contains(&dir.join("mine.json").display().to_string()),
+            stderr.contains(&dir.join("measured-mine.json").display().to_string()),
             "{stderr}"
         );
     }
-    assert_eq!(std::fs::read(runs[0].0.join("mine.json")).unwrap(), vendor);
     assert_eq!(
-        std::fs::read(runs[1].0.join("mine.json")).unwrap(),
+        std::fs::read(runs[0].0.join("measured-mine.json")).unwrap(),
+        vendor
+    );
+    assert_eq!(
+        std::fs::read(runs[1].0.join("measured-mine.json")).unwrap(),
         b"not json"
     );
     // --overwrite replaces them; rsasim's own file is then replaced without asking.
@@ -370,7 +373,12 @@ fn reconstruct_never_replaces_another_softwares_results() {
     let o = rsasim(&args, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // Names that would hit rsasim's own records or leave the run folder are refused.
-    for bad in ["truth.json", "../x.json", "m.txt"] {
+    for bad in [
+        "truth.json",
+        "../measured.json",
+        "measured.txt",
+        "measured/../x.json",
+    ] {
         let o = rsasim(
             &["reconstruct", out.to_str().unwrap(), "--measured", bad],
             &[],

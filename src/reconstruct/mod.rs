@@ -151,15 +151,11 @@ fn model_label(setup: &exam::Setup, model_method: Option<ModelMethod>) -> &'stat
     }
 }
 
-/// A results name must be a plain `.json` file name that is not one of rsasim's own records.
+/// A results name must be a plain file name `measured*.json` (what `evaluate` looks for by
+/// default), so it can never name one of the simulator's own records.
 fn check_results_name(out: &Path, name: &str) -> Result<(), Vec<Diagnostic>> {
-    let plain = !name.is_empty()
-        && !name.contains(['/', '\\', '\0'])
-        && name != "."
-        && name != ".."
-        && name.len() <= 200;
-    let reserved = ["truth.json", "manifest.json"].contains(&name);
-    if plain && name.ends_with(".json") && !reserved {
+    let plain = !name.contains(['/', '\\', '\0']) && name.len() <= 200;
+    if plain && name.starts_with("measured") && name.ends_with(".json") {
         return Ok(());
     }
     let shown: String = name.chars().take(80).collect();
@@ -168,9 +164,7 @@ fn check_results_name(out: &Path, name: &str) -> Result<(), Vec<Diagnostic>> {
             out,
             format!("--measured `{shown}` is not a usable results file name"),
         )
-        .with_help(
-            "give a plain file name ending in .json (not truth.json or manifest.json), e.g. measured-rsasim-dlt-markers.json",
-        ),
+        .with_help("give a plain file name measured*.json, e.g. measured-rsasim-dlt-markers.json"),
     ])
 }
 
@@ -180,7 +174,8 @@ fn ours_or_absent(file: &Path) -> bool {
     let Ok(meta) = std::fs::symlink_metadata(file) else {
         return true;
     };
-    if !meta.is_file() {
+    // Results files are small; anything huge is not rsasim's and is not read.
+    if !meta.is_file() || meta.len() > 64 << 20 {
         return false;
     }
     let Ok(bytes) = std::fs::read(file) else {
