@@ -317,6 +317,15 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
     }
 }
 
+/// Writes `m` as `dir/measured.json`.
+fn write_measured(dir: &std::path::Path, m: &Measured) {
+    std::fs::write(
+        dir.join("measured.json"),
+        serde_json::to_vec_pretty(m).unwrap(),
+    )
+    .unwrap()
+}
+
 /// (what is broken, how, expected message part, expected field or line marker)
 #[test]
 fn bad_results_are_named_by_file_line_and_field() {
@@ -324,13 +333,7 @@ fn bad_results_are_named_by_file_line_and_field() {
     let all = truths(&out);
     let (dir, truth) = &all[0];
     let good = measured_with_known_errors(truth, 0);
-    let write = |m: &Measured| {
-        std::fs::write(
-            dir.join("measured.json"),
-            serde_json::to_vec_pretty(m).unwrap(),
-        )
-        .unwrap()
-    };
+    let write = |m: &Measured| write_measured(dir, m);
     let run_json = |expect: &[&str]| {
         let o = rsasim(&["evaluate", out.to_str().unwrap()], &[]);
         let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -581,13 +584,7 @@ fn duplicates_implausible_values_and_long_values_are_errors_naming_the_place() {
     let all = truths(&out);
     let (dir, truth) = &all[0];
     let good = measured_with_known_errors(truth, 0);
-    let write = |m: &Measured| {
-        std::fs::write(
-            dir.join("measured.json"),
-            serde_json::to_vec_pretty(m).unwrap(),
-        )
-        .unwrap()
-    };
+    let write = |m: &Measured| write_measured(dir, m);
     let expect = |args: &[&str], parts: &[&str]| {
         let (code, stderr) = evaluate_cli(&out, args);
         assert_eq!(code, Some(2), "{stderr}");

@@ -191,8 +191,13 @@ fn json_error(file: &Path, e: &serde_json::Error) -> Diagnostic {
 
 /// A parser's message with every quoted value in it cut (serde echoes offending strings whole).
 fn cut_message(message: &str) -> String {
-    message
-        .split('`')
+    cut_quoted(&cut_quoted(message, '`'), '"')
+}
+
+/// `message` with every part between two `quote`s cut.
+fn cut_quoted(message: &str, quote: char) -> String {
+    let parts: Vec<String> = message
+        .split(quote)
         .enumerate()
         .map(|(i, part)| {
             if i % 2 == 1 {
@@ -201,19 +206,8 @@ fn cut_message(message: &str) -> String {
                 part.to_string()
             }
         })
-        .collect::<Vec<_>>()
-        .join("`")
-        .split('"')
-        .enumerate()
-        .map(|(i, part)| {
-            if i % 2 == 1 {
-                cut(part)
-            } else {
-                part.to_string()
-            }
-        })
-        .collect::<Vec<_>>()
-        .join("\"")
+        .collect();
+    parts.join(&quote.to_string())
 }
 
 /// The 1-based line of the first `"value"` string after the first `"section"` key, to point at
