@@ -64,14 +64,11 @@ pub enum Command {
     Evaluate {
         /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/).
         out: PathBuf,
-        /// File name of the results in every run folder (schemas/measured.schema.json).
-        #[arg(
-            long,
-            default_value = "measured.json",
-            value_name = "FILE_NAME",
-            conflicts_with = "csv"
-        )]
-        measured: String,
+        /// File name of the results in every run folder (schemas/measured.schema.json). Default:
+        /// measured.json if present, else the one measured*.json name the run folders hold
+        /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them.
+        #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
+        measured: Option<String>,
         /// Read every run's results from one CSV long table instead (columns in the README).
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
@@ -89,7 +86,8 @@ pub enum Command {
             value_name = "LIST"
         )]
         format: Vec<String>,
-        /// Folder the reports are written to. Default: OUT/report.
+        /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
+        /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
         /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
@@ -111,8 +109,10 @@ pub enum Command {
         images: Option<PathBuf>,
     },
     /// Run rsasim's reference RSA program on an output folder: calibrate every beamline from the
-    /// box beads, find each model from its beads, and write measured.json into every run folder.
-    /// It reads only what a real RSA program has: images, nominal set-up, phantoms/ (never truth.json).
+    /// box beads, find each model from its beads, and write
+    /// measured-rsasim-<calibration>-<model>.json into every run folder (never over another
+    /// software's results). It reads only what a real RSA program has: images, nominal set-up,
+    /// phantoms/ (never truth.json).
     Reconstruct {
         /// The output folder of a simulation.
         out: PathBuf,
@@ -128,6 +128,15 @@ pub enum Command {
         /// Default: markers for a model with beads, silhouette for a model without.
         #[arg(long, value_name = "METHOD", value_parser = model_method_parser())]
         model_method: Option<ModelMethod>,
+        /// File name of the results in every run folder. Default:
+        /// measured-rsasim-<calibration>-<model>.json, e.g. measured-rsasim-dlt-markers.json
+        /// (`auto` for the model part when models use different methods by default).
+        #[arg(long, value_name = "FILE_NAME")]
+        measured: Option<String>,
+        /// Replace a results file of that name even if another software wrote it (or it does not
+        /// parse). rsasim's own earlier results are always replaced.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {

@@ -35,7 +35,17 @@ fn main() -> ExitCode {
             out,
             method,
             model_method,
-        }) => reconstruct(&out, method, model_method),
+            measured,
+            overwrite,
+        }) => reconstruct(
+            &out,
+            &rsasim::reconstruct::Options {
+                method,
+                model_method,
+                measured,
+                overwrite,
+            },
+        ),
         Some(Command::Evaluate {
             out,
             measured,
@@ -133,23 +143,33 @@ fn run(
     Ok(())
 }
 
-fn reconstruct(
-    out: &std::path::Path,
-    method: rsasim::reconstruct::Method,
-    model_method: Option<rsasim::reconstruct::ModelMethod>,
-) -> Result<(), u8> {
+fn reconstruct(out: &std::path::Path, options: &rsasim::reconstruct::Options) -> Result<(), u8> {
     let start = Instant::now();
-    let summary = rsasim::reconstruct::reconstruct(out, method, model_method)
-        .map_err(|errors| report_errors(&errors))?;
+    let summary =
+        rsasim::reconstruct::reconstruct(out, options).map_err(|errors| report_errors(&errors))?;
+    for f in &summary.failures {
+        eprintln!("warning: run {}: {}", f.run, f.reason);
+    }
     for (run, why) in &summary.failed {
         eprintln!("error: run {run}: {why}");
     }
     eprintln!(
-        "rsasim reconstruct: {} run(s) reconstructed, {} failed, in {:.1} s; score them with `rsasim evaluate {}`",
+        "rsasim reconstruct: {} run(s) reconstructed, {} run(s) failed; {} of {} model fit(s) failed; in {:.1} s -> runs/*/{}",
         summary.runs,
         summary.failed.len(),
+        summary.models_tried - summary.models_found,
+        summary.models_tried,
         start.elapsed().as_secs_f64(),
-        out.display()
+        summary.measured
+    );
+    if summary.nothing_reconstructed() {
+        eprintln!("error: nothing could be reconstructed");
+        return Err(1);
+    }
+    eprintln!(
+        "score them with `rsasim evaluate {} --measured {}`",
+        out.display(),
+        summary.measured
     );
     if summary.failed.is_empty() {
         Ok(())
@@ -172,7 +192,7 @@ fn verify(out: &std::path::Path, images: Option<&std::path::Path>) -> Result<(),
 fn evaluate(
     out: &std::path::Path,
     truth: Option<&std::path::Path>,
-    measured: String,
+    measured: Option<String>,
     csv: Option<std::path::PathBuf>,
     confidence: f64,
     sided: &str,
@@ -200,7 +220,11 @@ fn evaluate(
         stats::Sided::One
     };
     let options = Options {
-        measured: csv.map_or(MeasuredSource::PerRun(measured), MeasuredSource::Csv),
+        measured: match (csv, measured) {
+            (Some(file), _) => MeasuredSource::Csv(file),
+            (None, Some(name)) => MeasuredSource::PerRun(name),
+            (None, None) => MeasuredSource::Auto,
+        },
         confidence: stats::Confidence {
             level: confidence,
             sided,
@@ -209,7 +233,10 @@ fn evaluate(
     let start = Instant::now();
     let result = evaluate::evaluate_with_truth(out, truth, &options)
         .map_err(|errors| report_errors(&errors))?;
-    let dir = report_dir.unwrap_or_else(|| out.join("report"));
+    for note in &result.notes {
+        eprintln!("note: {note}");
+    }
+    let dir = report_dir.unwrap_or_else(|| out.join(report::default_folder_name(&result)));
     let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
         eprintln!(
             "error: writing the reports into {} failed: {e}",

@@ -48,6 +48,7 @@ fn measured_with_known_errors(truth: &Truth, k: usize) -> Measured {
         format: "rsasim-measured/1".into(),
         run: run.id.clone(),
         software: "known-errors 1.0".into(),
+        methods: None,
         sources: run
             .sources
             .iter()
@@ -316,6 +317,15 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
     }
 }
 
+/// Writes `m` as `dir/measured.json`.
+fn write_measured(dir: &std::path::Path, m: &Measured) {
+    std::fs::write(
+        dir.join("measured.json"),
+        serde_json::to_vec_pretty(m).unwrap(),
+    )
+    .unwrap()
+}
+
 /// (what is broken, how, expected message part, expected field or line marker)
 #[test]
 fn bad_results_are_named_by_file_line_and_field() {
@@ -323,13 +333,7 @@ fn bad_results_are_named_by_file_line_and_field() {
     let all = truths(&out);
     let (dir, truth) = &all[0];
     let good = measured_with_known_errors(truth, 0);
-    let write = |m: &Measured| {
-        std::fs::write(
-            dir.join("measured.json"),
-            serde_json::to_vec_pretty(m).unwrap(),
-        )
-        .unwrap()
-    };
+    let write = |m: &Measured| write_measured(dir, m);
     let run_json = |expect: &[&str]| {
         let o = rsasim(&["evaluate", out.to_str().unwrap()], &[]);
         let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -463,7 +467,15 @@ fn the_command_writes_every_report_format() {
         &[],
     );
     assert!(o.status.success());
-    assert!(out.join("report/report.html").is_file() && !out.join("report/report.tex").exists());
+    // The default folder is named after the results file, so two softwares' reports never mix.
+    let folder = out.join("report-measured");
+    assert!(folder.join("report.html").is_file() && !folder.join("report.tex").exists());
+    let md = std::fs::read_to_string(folder.join("report.md")).unwrap();
+    assert!(
+        md.contains("**Software under test:** known-errors 1.0"),
+        "{md}"
+    );
+    assert!(md.contains("**Results file:** measured.json"), "{md}");
     let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "pdf"], &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("valid formats"));
@@ -484,4 +496,256 @@ fn a_folder_that_is_not_an_output_folder_is_named_as_such() {
         );
         assert!(stderr.contains("--out DIR"), "{cmd}: {stderr}");
     }
+}
+
+/// Writes every run's known-error results as `name`, with `edit` applied to each file's text.
+fn write_all(out: &std::path::Path, name: &str, edit: &dyn Fn(Measured) -> Measured) {
+    for (k, (dir, truth)) in truths(out).iter().enumerate() {
+        let m = edit(measured_with_known_errors(truth, k));
+        std::fs::write(dir.join(name), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    }
+}
+
+/// Runs `rsasim evaluate OUT args…` and returns (exit code, stderr).
+fn evaluate_cli(out: &std::path::Path, args: &[&str]) -> (Option<i32>, String) {
+    let mut all = vec!["evaluate", out.to_str().unwrap()];
+    all.extend(args);
+    let o = rsasim(&all, &[]);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn round6(rows: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    rows.map(|r| r.map(|x| (x * 1e6).round() / 1e6))
+}
+
+#[test]
+fn rotations_rounded_to_six_decimals_are_repaired_and_counted() {
+    let (_tmp, out) = simulated();
+    let expected = std::cell::Cell::new(0);
+    write_all(&out, "measured.json", &|mut m| {
+        for e in m.detectors.iter_mut().chain(m.phantoms.iter_mut()) {
+            let r = e.rotation.unwrap();
+            if round6(r) != r {
+                expected.set(expected.get() + 1);
+            }
+            e.rotation = Some(round6(r));
+        }
+        m
+    });
+    assert!(expected.get() > 40, "{}", expected.get());
+    let exact = evaluate(&out, &options());
+    let report = exact.unwrap_or_else(|e| panic!("rounded rotations rejected: {e:?}"));
+    assert_eq!(report.repaired_rotations, expected.get());
+    // The command says so on stderr and in the report.
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let said = format!(
+        "note: {} rotation(s) were re-orthonormalised",
+        expected.get()
+    );
+    assert!(stderr.contains(&said), "{stderr}");
+    let md = std::fs::read_to_string(out.join("report-measured/report.md")).unwrap();
+    assert!(
+        md.contains(&format!(
+            "**Rotations re-orthonormalised:** {}",
+            expected.get()
+        )),
+        "{md}"
+    );
+    // Quaternions rounded to 6 decimals in a CSV are repaired too.
+    let mut csv = String::from("run,kind,id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
+    for (k, (_, truth)) in truths(&out).iter().enumerate() {
+        let m = measured_with_known_errors(truth, k);
+        for e in &m.phantoms {
+            let q = glam::DQuat::from_mat3(&rotation_from_rows(e.rotation.unwrap()));
+            let p = e.position_mm;
+            csv += &format!(
+                "{},phantom,{},{},{},{},{:.6},{:.6},{:.6},{:.6}\n",
+                m.run, e.id, p[0], p[1], p[2], q.w, q.x, q.y, q.z
+            );
+        }
+    }
+    let file = out.join("q.csv");
+    std::fs::write(&file, csv).unwrap();
+    let (code, stderr) = evaluate_cli(&out, &["--csv", file.to_str().unwrap(), "--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("rotation(s) were re-orthonormalised"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn duplicates_implausible_values_and_long_values_are_errors_naming_the_place() {
+    let (tmp, out) = simulated();
+    let all = truths(&out);
+    let (dir, truth) = &all[0];
+    let good = measured_with_known_errors(truth, 0);
+    let write = |m: &Measured| write_measured(dir, m);
+    let expect = |args: &[&str], parts: &[&str]| {
+        let (code, stderr) = evaluate_cli(&out, args);
+        assert_eq!(code, Some(2), "{stderr}");
+        for p in parts {
+            assert!(stderr.contains(p), "expected `{p}` in:\n{stderr}");
+        }
+        assert!(!out.join("report-measured").exists() && !out.join("report-r").exists());
+        stderr
+    };
+    // The same phantom twice in one measured.json: both lines named.
+    let mut m = good.clone();
+    let mut second = m.phantoms[0].clone();
+    second.position_mm[0] += 1.0;
+    m.phantoms.push(second);
+    write(&m);
+    let text = std::fs::read_to_string(dir.join("measured.json")).unwrap();
+    let id_lines: Vec<usize> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(&format!("\"id\": \"{}\"", m.phantoms[0].id)))
+        .map(|(i, _)| i + 1)
+        .collect();
+    assert_eq!(id_lines.len(), 2, "{text}");
+    expect(
+        &[],
+        &[
+            "repeats the id `femur`",
+            &format!("line {} and line {}", id_lines[0], id_lines[1]),
+        ],
+    );
+    // A position of 1e308 mm: refused, naming the field (it made inf cells and NaN rows).
+    let mut m = good.clone();
+    m.phantoms[0].position_mm[2] = 1e308;
+    write(&m);
+    expect(&[], &["`phantoms[0].position_mm`", "implausible", "1e308"]);
+    // A UTF-8 byte-order mark (PowerShell, .NET) is accepted.
+    let mut bytes = vec![0xef, 0xbb, 0xbf];
+    bytes.extend(serde_json::to_vec_pretty(&good).unwrap());
+    std::fs::write(dir.join("measured.json"), bytes).unwrap();
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "a BOM was refused: {stderr}");
+    std::fs::remove_file(dir.join("measured.json")).unwrap();
+    std::fs::remove_dir_all(out.join("report-measured")).unwrap();
+
+    let csv = |body: &[u8], parts: &[&str]| -> String {
+        let file = tmp.path().join("r.csv");
+        let mut text = b"run,kind,id,x_mm,y_mm,z_mm\n".to_vec();
+        text.extend(body);
+        std::fs::write(&file, text).unwrap();
+        expect(&["--csv", file.to_str().unwrap()], parts)
+    };
+    // Two rows for one run and entity: both lines named, instead of the last silently winning.
+    csv(
+        b"n0-r00,source,tube1,1,2,3\nn0-r01,source,tube1,1,2,3\nn0-r00,source,tube1,1,2,4\n",
+        &[
+            "r.csv:4:",
+            "line 4 repeats run n0-r00, source `tube1` of line 2",
+        ],
+    );
+    csv(
+        b"n0-r00,source,tube1,1,2,1e308\n",
+        &["r.csv:2:", "`z_mm`", "implausible"],
+    );
+    // A 1 MB field is echoed cut, not whole.
+    let long = "x".repeat(1 << 20);
+    let stderr = csv(
+        format!("n0-r00,source,{long},1,2,3\n").as_bytes(),
+        &[
+            "r.csv:2:",
+            "no source has the id `xxxx",
+            "… (1048576 bytes)",
+        ],
+    );
+    assert!(stderr.len() < 2000, "{} bytes of stderr", stderr.len());
+    let stderr = csv(
+        format!("n0-r00,source,tube1,1,2,{long}\n").as_bytes(),
+        &["`z_mm`"],
+    );
+    assert!(stderr.len() < 2000, "{} bytes of stderr", stderr.len());
+    // A BOM before the CSV header is accepted.
+    let file = tmp.path().join("bom.csv");
+    std::fs::write(
+        &file,
+        b"\xef\xbb\xbfrun,kind,id,x_mm,y_mm,z_mm\nn0-r00,source,tube1,1,2,3\n",
+    )
+    .unwrap();
+    let (code, stderr) = evaluate_cli(&out, &["--csv", file.to_str().unwrap(), "--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+}
+
+#[test]
+fn the_default_results_file_is_chosen_or_asked_for() {
+    let (_tmp, out) = simulated();
+    // Only one kind of measured*.json: used, and said so.
+    write_all(&out, "measured-vendor.json", &|m| m);
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("results: measured-vendor.json"), "{stderr}");
+    let md = std::fs::read_to_string(out.join("report-measured-vendor/report.md")).unwrap();
+    assert!(
+        md.contains("**Results file:** measured-vendor.json"),
+        "{md}"
+    );
+    // Two kinds: an error listing both and the flag to pass.
+    write_all(&out, "measured-other.json", &|m| m);
+    let (code, stderr) = evaluate_cli(&out, &[]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("measured-other.json, measured-vendor.json")
+            && stderr.contains("--measured measured-other.json"),
+        "{stderr}"
+    );
+    // measured.json, when present, is the default.
+    write_all(&out, "measured.json", &|m| m);
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(out.join("report-measured/report.md").is_file());
+}
+
+#[test]
+fn a_folder_mixing_runs_of_different_scenarios_is_an_error_naming_the_run() {
+    let (_tmp, out) = simulated();
+    write_all(&out, "measured.json", &|m| m);
+    let all = truths(&out);
+    let (dir, truth) = &all[3];
+    let mut other = truth.clone();
+    other.run.phantoms.retain(|p| p.id != "femur");
+    std::fs::write(
+        dir.join("truth.json"),
+        serde_json::to_vec_pretty(&other).unwrap(),
+    )
+    .unwrap();
+    let mut m = measured_with_known_errors(truth, 3);
+    m.phantoms.retain(|p| p.id != "femur");
+    std::fs::write(
+        dir.join("measured.json"),
+        serde_json::to_vec_pretty(&m).unwrap(),
+    )
+    .unwrap();
+    let (code, stderr) = evaluate_cli(&out, &[]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!("run `{}` has phantoms", truth.run.id))
+            && stderr.contains("mixes runs of different scenarios"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_missing_mtpm_column_is_explained_in_the_report_and_on_stderr() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("mb");
+    run_scenario("tests/scenarios/model_based.toml", &out, &[]);
+    write_all(&out, "measured.json", &|m| m);
+    // The bead-less femur's MTPM uses its mesh's corners; with an unreadable mesh the column
+    // used to disappear without a word.
+    std::fs::write(out.join("phantoms/femur.glb"), b"not a mesh").unwrap();
+    let (code, stderr) = evaluate_cli(&out, &["--format", "md"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let said = "no MTPM column for model femur: it has no beads and its mesh could not be built";
+    assert!(stderr.contains(&format!("note: {said}")), "{stderr}");
+    let md = std::fs::read_to_string(out.join("report-measured/report.md")).unwrap();
+    assert!(md.contains("## Notes") && md.contains(said), "{md}");
 }

@@ -77,7 +77,20 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
     let out = tmp.path().join("rec");
     run_scenario("tests/scenarios/reconstruct.toml", &out, &[]);
     // Every truth.json is hidden while reconstructing: it must not need them.
-    let report = reconstruct_without_truth(&out, &[]);
+    // A vendor's results under the documented default name: reconstruct must never touch them.
+    let vendor: Vec<(std::path::PathBuf, Vec<u8>)> = common::truths(&out)
+        .iter()
+        .map(|(dir, t)| {
+            let bytes = format!(
+                "{{\"format\": \"rsasim-measured/1\", \"run\": \"{}\", \"software\": \"VendorRSA 2.0\"}}\n",
+                t.run.id
+            )
+            .into_bytes();
+            std::fs::write(dir.join("measured.json"), &bytes).unwrap();
+            (dir.join("measured.json"), bytes)
+        })
+        .collect();
+    let report = reconstruct_without_truth(&out, &[], DLT);
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     // Per noise level (3 runs each), |trueness| and RMS stay below a tenth of a millimetre
     // (degree) where the geometry allows it; depth (s) is looser by nature.
@@ -104,9 +117,12 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
     }
 
     // The classic Selvik calibration on the same images: lateral accuracy within the same bound.
-    let report = reconstruct_without_truth(&out, &["--method", "selvik"]);
+    let report = reconstruct_without_truth(&out, &["--method", "selvik"], SELVIK);
     assert!(
-        report.software.iter().any(|s| s.contains("Selvik")),
+        report
+            .software
+            .iter()
+            .any(|s| s.contains("(selvik, markers)")),
         "{:?}",
         report.software
     );
@@ -118,10 +134,73 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
             "selvik: {table} {group} {cols:?}: RMS {r} exceeds {bound}"
         );
     }
+    for (file, bytes) in &vendor {
+        assert_eq!(
+            &std::fs::read(file).unwrap(),
+            bytes,
+            "{} changed",
+            file.display()
+        );
+    }
+
+    // The README's recipe: evaluate each method's results by name, default report folders.
+    let mut md = Vec::new();
+    for name in [DLT, SELVIK] {
+        let o = rsasim(
+            &["evaluate", out.to_str().unwrap(), "--measured", name],
+            &[],
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let folder = out.join(format!("report-{}", name.trim_end_matches(".json")));
+        let own = evaluate(
+            &out,
+            &Options {
+                measured: MeasuredSource::PerRun(name.into()),
+                confidence: Confidence::default(),
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            std::fs::read_to_string(folder.join("report.csv")).unwrap(),
+            rsasim::evaluate::report::render(&own, rsasim::evaluate::report::Format::Csv),
+            "{name}: the report's numbers are not its own file's"
+        );
+        md.push(std::fs::read_to_string(folder.join("report.md")).unwrap());
+    }
+    let software_line = |md: &str| {
+        md.lines()
+            .find(|l| l.contains("**Software under test:**"))
+            .unwrap()
+            .to_string()
+    };
+    assert!(
+        software_line(&md[0]).contains("(dlt, markers)"),
+        "{}",
+        md[0]
+    );
+    assert!(
+        software_line(&md[1]).contains("(selvik, markers)"),
+        "{}",
+        md[1]
+    );
+    assert!(md[0].contains(&format!("**Results file:** {DLT}")));
+    // Beside rsasim's two results files, measured.json is the default: the vendor's file.
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "md"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let vendor_md = std::fs::read_to_string(out.join("report-measured/report.md")).unwrap();
+    assert!(
+        software_line(&vendor_md).contains("VendorRSA 2.0"),
+        "{vendor_md}"
+    );
 }
 
-/// Runs `reconstruct` with `args` on `out` with every truth.json hidden, then evaluates.
-fn reconstruct_without_truth(out: &std::path::Path, args: &[&str]) -> Report {
+const DLT: &str = "measured-rsasim-dlt-markers.json";
+const SELVIK: &str = "measured-rsasim-selvik-markers.json";
+const SILHOUETTE: &str = "measured-rsasim-dlt-silhouette.json";
+
+/// Runs `reconstruct` with `args` on `out` with every truth.json hidden, checks that it wrote
+/// `name` into every run folder, then evaluates that.
+fn reconstruct_without_truth(out: &std::path::Path, args: &[&str], name: &str) -> Report {
     let runs: Vec<_> = std::fs::read_dir(out.join("runs"))
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -136,21 +215,24 @@ fn reconstruct_without_truth(out: &std::path::Path, args: &[&str]) -> Report {
         std::fs::rename(r.join("hidden"), r.join("truth.json")).unwrap();
     }
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for r in &runs {
+        assert!(r.join(name).is_file(), "no {name} in {}", r.display());
+    }
     evaluate(
         out,
         &Options {
-            measured: MeasuredSource::PerRun("measured.json".into()),
+            measured: MeasuredSource::PerRun(name.into()),
             confidence: Confidence::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"))
 }
 
-/// The femur's fit residual in every run's measured.json: (contour distance px, points).
+/// The femur's fit residual in every run's silhouette results: (contour distance px, points).
 fn contour_quality(out: &std::path::Path) -> Vec<(f64, usize)> {
     let mut v = Vec::new();
     for e in std::fs::read_dir(out.join("runs")).unwrap() {
-        let text = std::fs::read_to_string(e.unwrap().path().join("measured.json")).unwrap();
+        let text = std::fs::read_to_string(e.unwrap().path().join(SILHOUETTE)).unwrap();
         let m: rsasim::output::measured::Measured = serde_json::from_str(&text).unwrap();
         let q = m
             .phantoms
@@ -172,13 +254,13 @@ fn model_based_rsa_finds_the_femur_by_its_silhouette_at_both_extreme_noise_level
     let out = tmp.path().join("sil");
     run_scenario("tests/scenarios/reconstruct.toml", &out, &[]);
     // The femur has beads, so model-based RSA has to be asked for.
-    let report = reconstruct_without_truth(&out, &["--model-method", "silhouette"]);
+    let report = reconstruct_without_truth(&out, &["--model-method", "silhouette"], SILHOUETTE);
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     assert!(
         report
             .software
             .iter()
-            .all(|s| s.contains("model-based (silhouette)")),
+            .all(|s| s.contains("(dlt, silhouette)")),
         "{:?}",
         report.software
     );
@@ -206,7 +288,7 @@ fn a_model_without_beads_is_found_by_its_silhouette_by_default() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("mb");
     run_scenario("tests/scenarios/model_based.toml", &out, &[]);
-    let report = reconstruct_without_truth(&out, &[]);
+    let report = reconstruct_without_truth(&out, &[], SILHOUETTE);
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     let rms = |c: &rsasim::evaluate::stats::Cell| c.rms;
     for (group, cols) in [
@@ -218,7 +300,14 @@ fn a_model_without_beads_is_found_by_its_silhouette_by_default() {
         assert!(r < 0.1, "femur {group}: RMS {r}");
     }
     assert_eq!(contour_quality(&out).len(), 2);
-    // Asking for marker-based RSA on a model without beads finds no model, and says why.
+    // The methods actually used are recorded in the file.
+    let text = std::fs::read_to_string(common::truths(&out)[0].0.join(SILHOUETTE)).unwrap();
+    let m: rsasim::output::measured::Measured = serde_json::from_str(&text).unwrap();
+    let methods = m.methods.expect("methods recorded");
+    assert_eq!(methods.calibration, "dlt");
+    assert_eq!(methods.models["femur"], "silhouette");
+    // Asking for marker-based RSA on a model without beads finds no model, says why, counts
+    // the failures and exits non-zero: nothing at all was reconstructed.
     let o = rsasim(
         &[
             "reconstruct",
@@ -233,6 +322,69 @@ fn a_model_without_beads_is_found_by_its_silhouette_by_default() {
         stderr.contains("the model has no beads; use --model-method silhouette"),
         "{stderr}"
     );
+    assert!(stderr.contains("2 of 2 model fit(s) failed"), "{stderr}");
+    assert!(
+        stderr.contains("nothing could be reconstructed"),
+        "{stderr}"
+    );
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+}
+
+#[test]
+fn reconstruct_never_replaces_another_softwares_results() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("own");
+    run_scenario("tests/scenarios/model_based.toml", &out, &[]);
+    let runs = common::truths(&out);
+    // A vendor's file (and an unparsable one) under the name reconstruct is told to write.
+    let vendor =
+        b"{\"format\": \"rsasim-measured/1\", \"run\": \"x\", \"software\": \"VendorRSA\"}";
+    std::fs::write(runs[0].0.join("measured-mine.json"), vendor).unwrap();
+    std::fs::write(runs[1].0.join("measured-mine.json"), b"not json").unwrap();
+    let args = [
+        "reconstruct",
+        out.to_str().unwrap(),
+        "--measured",
+        "measured-mine.json",
+    ];
+    let o = rsasim(&args, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--overwrite"), "{stderr}");
+    for (dir, _) in &runs {
+        assert!(
+            stderr.contains(&dir.join("measured-mine.json").display().to_string()),
+            "{stderr}"
+        );
+    }
+    assert_eq!(
+        std::fs::read(runs[0].0.join("measured-mine.json")).unwrap(),
+        vendor
+    );
+    assert_eq!(
+        std::fs::read(runs[1].0.join("measured-mine.json")).unwrap(),
+        b"not json"
+    );
+    // --overwrite replaces them; rsasim's own file is then replaced without asking.
+    let mut with = args.to_vec();
+    with.push("--overwrite");
+    let o = rsasim(&with, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = rsasim(&args, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Names that would hit rsasim's own records or leave the run folder are refused.
+    for bad in [
+        "truth.json",
+        "../measured.json",
+        "measured.txt",
+        "measured/../x.json",
+    ] {
+        let o = rsasim(
+            &["reconstruct", out.to_str().unwrap(), "--measured", bad],
+            &[],
+        );
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+    }
 }
 
 #[test]
@@ -240,7 +392,7 @@ fn a_model_far_above_its_cage_is_found_in_the_uniplanar_set_up() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("uni");
     run_scenario("tests/scenarios/reconstruct_uniplanar.toml", &out, &[]);
-    let report = reconstruct_without_truth(&out, &[]);
+    let report = reconstruct_without_truth(&out, &[], DLT);
     assert!(report.excluded.is_empty(), "{:?}", report.excluded);
     let rms = |c: &rsasim::evaluate::stats::Cell| c.rms;
     for (table, group, cols, bound) in [

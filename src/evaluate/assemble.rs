@@ -230,11 +230,12 @@ pub fn assemble(
             }
         }
         for (id, samples) in models.iter().zip(&mut phantoms) {
-            let t = run
-                .phantoms
-                .iter()
-                .find(|p| p.id == *id)
-                .expect("same phantoms in every run");
+            // `check_same_entities` rejects mixed folders first; a run without this model is
+            // still only an exclusion here, never a panic.
+            let Some(t) = run.phantoms.iter().find(|p| p.id == *id) else {
+                missing.push(format!("model {id} (not in this run's truth)"));
+                continue;
+            };
             match m.phantoms.get(*id) {
                 Some((p, rot)) => {
                     samples.push(

@@ -17,13 +17,24 @@
 //!
 //! Give either the nine `r` columns or the four `q` columns (or neither, for positions only); a
 //! row may leave the rotation cells empty (sources always do).
+//!
+//! # What is accepted
+//!
+//! - Every position must be finite and within ±[`MAX_ABS_MM`] mm of the box origin.
+//! - Rotations within [`REPAIR_TOLERANCE`](super::rotation::REPAIR_TOLERANCE) of orthonormal (quaternions: of unit length) are
+//!   re-orthonormalised and counted ([`RunMeasurement::repaired_rotations`]); larger deviations
+//!   are errors naming the deviation.
+//! - One result per run and entity: a repeated (run, kind, id) row, or a repeated id in a
+//!   `measured.json` array, is an error naming both lines.
+//! - A UTF-8 byte-order mark at the start of a file is ignored.
+//! - Values echoed in errors are cut to [`MAX_ECHO_CHARS`] characters.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec3};
 
-use super::rotation::{checked_rotation, rotation_from_quaternion};
+use super::rotation::{CheckedRotation, checked_rotation, rotation_from_quaternion};
 use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
 
@@ -46,6 +57,86 @@ pub struct RunMeasurement {
     pub detectors: BTreeMap<String, (DVec3, Option<DMat3>)>,
     /// Phantom poses by id (rotation optional).
     pub phantoms: BTreeMap<String, (DVec3, Option<DMat3>)>,
+    /// Rotations that were re-orthonormalised (rounded, within [`REPAIR_TOLERANCE`](super::rotation::REPAIR_TOLERANCE)).
+    pub repaired_rotations: usize,
+}
+
+/// Largest plausible |coordinate| of a measured position, mm (1 km): anything beyond is a unit
+/// or format error, and would overflow the statistics.
+pub const MAX_ABS_MM: f64 = 1e6;
+
+/// Longest value echoed in an error message, in characters; longer values are cut with `…`.
+pub const MAX_ECHO_CHARS: usize = 80;
+
+/// `value` cut to [`MAX_ECHO_CHARS`] characters for an error message.
+// TODO(merge): use diagnostic's helper
+fn cut(value: &str) -> String {
+    match value.char_indices().nth(MAX_ECHO_CHARS) {
+        Some((at, _)) => format!("{}… ({} bytes)", &value[..at], value.len()),
+        None => value.to_string(),
+    }
+}
+
+/// The text without a leading UTF-8 byte-order mark.
+fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
+/// Checks that every run's truth has the same sources, detectors and phantoms as the first:
+/// a folder mixing runs of different scenarios cannot be scored together.
+pub fn check_same_entities(truths: &[TruthRun]) -> Result<(), Vec<Diagnostic>> {
+    let ids = |t: &Truth| {
+        let r = &t.run;
+        (
+            r.sources.iter().map(|x| x.id.clone()).collect::<Vec<_>>(),
+            r.detectors.iter().map(|x| x.id.clone()).collect::<Vec<_>>(),
+            r.phantoms.iter().map(|x| x.id.clone()).collect::<Vec<_>>(),
+        )
+    };
+    let Some(first) = truths.first() else {
+        return Ok(());
+    };
+    let reference = ids(&first.truth);
+    let errors: Vec<Diagnostic> = truths
+        .iter()
+        .filter_map(|t| {
+            let own = ids(&t.truth);
+            let differs = |what: &str, a: &[String], b: &[String]| {
+                (a != b).then(|| {
+                    format!(
+                        "{what} [{}] instead of [{}]",
+                        cut(&b.join(", ")),
+                        cut(&a.join(", "))
+                    )
+                })
+            };
+            let diffs: Vec<String> = [
+                differs("sources", &reference.0, &own.0),
+                differs("detectors", &reference.1, &own.1),
+                differs("phantoms", &reference.2, &own.2),
+            ]
+            .into_iter()
+            .flatten()
+            .collect();
+            (!diffs.is_empty()).then(|| {
+                Diagnostic::file_error(
+                    &t.dir.join("truth.json"),
+                    format!(
+                        "run `{}` has {} (run `{}` has the latter): the output folder mixes runs of different scenarios",
+                        cut(&t.truth.run.id),
+                        diffs.join("; "),
+                        cut(&first.truth.run.id)
+                    ),
+                )
+                .with_help("score each scenario's output folder on its own; remove run folders copied from another output")
+            })
+        })
+        .collect();
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors)
+    }
 }
 
 /// Every run folder's `truth.json` under `out/runs`, in protocol order.
@@ -99,29 +190,67 @@ pub fn load_truths_from(
 }
 
 fn json_error(file: &Path, e: &serde_json::Error) -> Diagnostic {
-    let mut d = Diagnostic::file_error(file, format!("invalid JSON: {e}"));
+    let mut d = Diagnostic::file_error(
+        file,
+        format!("invalid JSON: {}", cut_message(&e.to_string())),
+    );
     if e.line() > 0 {
         d.line_col = Some((e.line(), e.column()));
     }
     d.with_help("the file must follow schemas/measured.schema.json (truth files: schemas/truth.schema.json)")
 }
 
+/// A parser's message with every quoted value in it cut (serde echoes offending strings whole).
+fn cut_message(message: &str) -> String {
+    cut_quoted(&cut_quoted(message, '`'), '"')
+}
+
+/// `message` with every part between two `quote`s cut.
+fn cut_quoted(message: &str, quote: char) -> String {
+    let parts: Vec<String> = message
+        .split(quote)
+        .enumerate()
+        .map(|(i, part)| {
+            if i % 2 == 1 {
+                cut(part)
+            } else {
+                part.to_string()
+            }
+        })
+        .collect();
+    parts.join(&quote.to_string())
+}
+
 /// The 1-based line of the first `"value"` string after the first `"section"` key, to point at
 /// an entity inside a JSON file (serde_json keeps no spans).
 fn json_line(text: &str, section: &str, value: &str) -> Option<(usize, usize)> {
+    json_line_nth(text, section, value, 0)
+}
+
+/// The 1-based line and column of the `nth` (0-based) `"value"` string after the first
+/// `"section"` key.
+fn json_line_nth(text: &str, section: &str, value: &str, nth: usize) -> Option<(usize, usize)> {
     let start = text.find(&format!("\"{section}\""))?;
-    let at = start + text[start..].find(&format!("\"{value}\""))?;
+    let needle = format!("\"{value}\"");
+    let at = start + text[start..].match_indices(&needle).nth(nth)?.0;
     let line = text[..at].matches('\n').count() + 1;
     let col = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
     Some((line, col))
 }
 
-/// Reads one run's `measured.json`, checking the run id, every entity id against `truth`, and
-/// every rotation.
+/// Reads one run's `measured.json`, checking the run id, every entity id against `truth` (each
+/// at most once), every position (finite, within [`MAX_ABS_MM`]) and every rotation.
 pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, Vec<Diagnostic>> {
-    let text = std::fs::read_to_string(file)
+    let bytes = std::fs::read(file)
         .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
-    let m: Measured = serde_json::from_str(&text).map_err(|e| vec![json_error(file, &e)])?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        vec![
+            Diagnostic::file_error(file, format!("not UTF-8 text: {e}"))
+                .with_help("write the file as UTF-8 JSON (schemas/measured.schema.json)"),
+        ]
+    })?;
+    let text = strip_bom(text);
+    let m: Measured = serde_json::from_str(text).map_err(|e| vec![json_error(file, &e)])?;
     let mut errors = Vec::new();
     let err = |section: &str,
                index: Option<usize>,
@@ -138,7 +267,7 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
         }
         let mut d = Diagnostic::file_error(file, message).with_help(help);
         d.key_path = Some(path);
-        d.line_col = json_line(&text, section, value);
+        d.line_col = json_line(text, section, value);
         d
     };
     if m.format != MEASURED_FORMAT {
@@ -147,7 +276,7 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
             None,
             "",
             &m.format,
-            format!("unknown format `{}`", m.format),
+            format!("unknown format `{}`", cut(&m.format)),
             "use \"rsasim-measured/1\"",
         ));
     }
@@ -158,8 +287,10 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
             "",
             &m.run,
             format!(
-                "the file says run `{}` but lies in the folder of run `{}`",
-                m.run, truth.run.id
+                "the file says run `{}` but lies in the folder of run `{}` ({})",
+                cut(&m.run),
+                truth.run.id,
+                file.parent().unwrap_or(file).display()
             ),
             "write each run's result into that run's folder",
         ));
@@ -168,6 +299,46 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
         software: m.software.clone(),
         ..Default::default()
     };
+    // Every entity id at most once per section: the error names both lines.
+    for (section, ids) in [
+        (
+            "sources",
+            m.sources.iter().map(|x| x.id.as_str()).collect::<Vec<_>>(),
+        ),
+        (
+            "detectors",
+            m.detectors.iter().map(|x| x.id.as_str()).collect(),
+        ),
+        (
+            "phantoms",
+            m.phantoms.iter().map(|x| x.id.as_str()).collect(),
+        ),
+    ] {
+        for (i, id) in ids.iter().enumerate() {
+            if let Some(first) = ids[..i].iter().position(|x| x == id) {
+                let nth = ids[..i].iter().filter(|x| *x == id).count();
+                let line_of = |k: usize| {
+                    json_line_nth(text, section, id, k)
+                        .map_or("an unknown line".to_string(), |(l, _)| format!("line {l}"))
+                };
+                let mut d = err(
+                    section,
+                    Some(i),
+                    "id",
+                    id,
+                    format!(
+                        "{section}[{i}] repeats the id `{}` of {section}[{first}] ({} and {})",
+                        cut(id),
+                        line_of(0),
+                        line_of(nth)
+                    ),
+                    "give each entity once per run",
+                );
+                d.line_col = json_line_nth(text, section, id, nth);
+                errors.push(d);
+            }
+        }
+    }
     for (i, s) in m.sources.iter().enumerate() {
         match entity_position(
             &s.id,
@@ -183,49 +354,54 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
             }
         }
     }
-    for (section, list, known, target) in [
-        (
-            "detectors",
-            &m.detectors,
-            truth
-                .run
-                .detectors
-                .iter()
-                .map(|x| x.id.clone())
-                .collect::<Vec<_>>(),
-            &mut out.detectors,
-        ),
-        (
-            "phantoms",
-            &m.phantoms,
-            truth
-                .run
-                .phantoms
-                .iter()
-                .map(|x| x.id.clone())
-                .collect::<Vec<_>>(),
-            &mut out.phantoms,
-        ),
+    let detector_ids: Vec<String> = truth.run.detectors.iter().map(|x| x.id.clone()).collect();
+    let phantom_ids: Vec<String> = truth.run.phantoms.iter().map(|x| x.id.clone()).collect();
+    for (section, list, known) in [
+        ("detectors", &m.detectors, &detector_ids),
+        ("phantoms", &m.phantoms, &phantom_ids),
     ] {
         for (i, e) in list.iter().enumerate() {
             let what = &section[..section.len() - 1];
             let pos = entity_position(&e.id, e.position_mm, known.iter().map(String::as_str), what);
             let rot = e.rotation.map(checked_rotation).transpose();
-            match (pos, rot) {
-                (Ok(p), Ok(r)) => {
-                    target.insert(e.id.clone(), (p, r));
+            let markers_ok = e.markers.iter().enumerate().try_for_each(|(k, b)| {
+                plausible_position(b.position_mm).map(drop).map_err(|msg| {
+                    err(
+                        section,
+                        Some(i),
+                        "markers",
+                        &b.id,
+                        format!(
+                            "{what} `{}`: marker {k} (`{}`): {msg}",
+                            cut(&e.id),
+                            cut(&b.id)
+                        ),
+                        "give three finite numbers in mm, box frame",
+                    )
+                })
+            });
+            match (pos, rot, markers_ok) {
+                (Ok(p), Ok(r), Ok(())) => {
+                    out.repaired_rotations += usize::from(r.is_some_and(|r| r.repaired));
+                    let target = if section == "detectors" {
+                        &mut out.detectors
+                    } else {
+                        &mut out.phantoms
+                    };
+                    target.insert(e.id.clone(), (p, r.map(|r: CheckedRotation| r.rotation)));
                 }
-                (Err((field, msg, help)), _) => {
+                (Err((field, msg, help)), _, _) => {
                     errors.push(err(section, Some(i), field, &e.id, msg, &help))
                 }
-                (_, Err(msg)) => errors.push(err(
+                (_, Err(msg), _) => errors.push(err(
                     section,
                     Some(i),
                     "rotation",
                     &e.id,
-                    format!("{what} `{}`: {msg}", e.id),
+                    format!("{what} `{}`: {msg}", cut(&e.id)),
                     "write the rotation as three rows of an orthonormal matrix with determinant +1",
                 )),
+                (_, _, Err(d)) => errors.push(d),
             }
         }
     }
@@ -238,6 +414,19 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
 
 type EntityError = (&'static str, String, String);
 
+/// A position that is finite and within ±[`MAX_ABS_MM`], or why not.
+fn plausible_position(p: [f64; 3]) -> Result<DVec3, String> {
+    if p.iter().any(|x| !x.is_finite()) {
+        return Err(format!("position {p:?} is not finite"));
+    }
+    if let Some(x) = p.iter().find(|x| x.abs() > MAX_ABS_MM) {
+        return Err(format!(
+            "position coordinate {x:e} mm is implausible (beyond ±{MAX_ABS_MM:e} mm)"
+        ));
+    }
+    Ok(DVec3::from_array(p))
+}
+
 fn entity_position<'a>(
     id: &str,
     p: [f64; 3],
@@ -248,18 +437,17 @@ fn entity_position<'a>(
     if !known_list.contains(&id) {
         return Err((
             "id",
-            format!("no {what} has the id `{id}` in truth.json"),
+            format!("no {what} has the id `{}` in truth.json", cut(id)),
             format!("valid {what} ids: {}", known_list.join(", ")),
         ));
     }
-    if p.iter().any(|x| !x.is_finite()) {
-        return Err((
+    plausible_position(p).map_err(|msg| {
+        (
             "position_mm",
-            format!("{what} `{id}`: position {p:?} is not finite"),
-            "give three finite numbers in mm".into(),
-        ));
-    }
-    Ok(DVec3::from_array(p))
+            format!("{what} `{id}`: {msg}"),
+            format!("give three finite numbers in mm, box frame, within ±{MAX_ABS_MM:e} mm"),
+        )
+    })
 }
 
 /// Reads a CSV long table (see the module doc) holding every run's results. Errors name the
@@ -281,7 +469,8 @@ pub fn load_measured_csv(
             )]
         })?
         .clone();
-    let col = |name: &str| headers.iter().position(|h| h == name);
+    // A byte-order mark sticks to the first header name.
+    let col = |name: &str| headers.iter().position(|h| strip_bom(h).trim() == name);
     let at = |line: usize, field: &str, message: String, help: &str| {
         let mut d = Diagnostic::file_error(file, message).with_help(help);
         d.line_col = Some((line, 1));
@@ -312,42 +501,52 @@ pub fn load_measured_csv(
         file.file_name().unwrap_or_default().to_string_lossy()
     );
     let mut out: BTreeMap<String, RunMeasurement> = BTreeMap::new();
+    let mut seen: BTreeMap<(String, String, String), usize> = BTreeMap::new();
     let mut errors = Vec::new();
     for (k, record) in reader.records().enumerate() {
-        let line = k + 2;
+        let mut line = k + 2;
         let record = match record {
             Ok(r) => r,
             Err(e) => {
                 errors.push(at(
                     line,
                     "row",
-                    format!("malformed row: {e}"),
+                    format!("malformed row: {}", cut_message(&e.to_string())),
                     "every row needs as many fields as the header",
                 ));
                 continue;
             }
         };
-        let get = |name: &str| record.get(col(name).expect("checked column")).unwrap_or("");
+        if let Some(p) = record.position() {
+            line = usize::try_from(p.line()).unwrap_or(line);
+        }
+        let get = |name: &str| col(name).and_then(|c| record.get(c)).unwrap_or("");
         let number = |name: &str| -> Result<f64, Box<Diagnostic>> {
             let v = get(name);
-            v.parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    Box::new(at(
-                        line,
-                        name,
-                        format!("`{name}` = `{v}` is not a finite number"),
-                        "use a decimal number such as 12.5 or -0.003",
-                    ))
-                })
+            let Some(x) = v.parse::<f64>().ok().filter(|x| x.is_finite()) else {
+                return Err(Box::new(at(
+                    line,
+                    name,
+                    format!("`{name}` = `{}` is not a finite number", cut(v)),
+                    "use a decimal number such as 12.5 or -0.003",
+                )));
+            };
+            if x.abs() > MAX_ABS_MM {
+                return Err(Box::new(at(
+                    line,
+                    name,
+                    format!("`{name}` = {x:e} mm is implausible (beyond ±{MAX_ABS_MM:e} mm)"),
+                    "give the position in mm, box frame",
+                )));
+            }
+            Ok(x)
         };
         let run_id = get("run").to_string();
         let Some(truth) = truths.iter().find(|t| t.truth.run.id == run_id) else {
             errors.push(at(
                 line,
                 "run",
-                format!("no run `{run_id}` in the output folder"),
+                format!("no run `{}` in the output folder", cut(&run_id)),
                 "use the run ids of the runs/ folders, e.g. n0-r00",
             ));
             continue;
@@ -366,7 +565,7 @@ pub fn load_measured_csv(
             }
         };
         let rotation = match parse_rotation(&record, matrix.as_deref(), quat.as_deref()) {
-            Ok(r) => r,
+            Ok(r) => r.map(|r| (r.rotation, r.repaired)),
             Err((field, msg)) => {
                 errors.push(at(line, &field, msg, "give an orthonormal rotation (r11..r33, row-major) or a unit quaternion (qw,qx,qy,qz), or leave all empty"));
                 continue;
@@ -385,7 +584,7 @@ pub fn load_measured_csv(
                 errors.push(at(
                     line,
                     "kind",
-                    format!("unknown kind `{kind}`"),
+                    format!("unknown kind `{}`", cut(&kind)),
                     "kind is source, detector or phantom",
                 ));
                 continue;
@@ -395,11 +594,26 @@ pub fn load_measured_csv(
             errors.push(at(
                 line,
                 "id",
-                format!("no {kind} has the id `{id}` in run {run_id}"),
+                format!("no {kind} has the id `{}` in run {run_id}", cut(&id)),
                 &format!("valid {kind} ids: {}", known.join(", ")),
             ));
             continue;
         }
+        if let Some(first) = seen.insert((run_id.clone(), kind.clone(), id.clone()), line) {
+            seen.insert((run_id.clone(), kind.clone(), id.clone()), first);
+            errors.push(at(
+                line,
+                "id",
+                format!(
+                    "line {line} repeats run {run_id}, {kind} `{}` of line {first}",
+                    cut(&id)
+                ),
+                "give one row per run and entity",
+            ));
+            continue;
+        }
+        entry.repaired_rotations += usize::from(rotation.is_some_and(|r| r.1));
+        let rotation = rotation.map(|r| r.0);
         match kind.as_str() {
             "source" => drop(entry.sources.insert(id, position)),
             "detector" => drop(entry.detectors.insert(id, (position, rotation))),
@@ -417,7 +631,7 @@ fn parse_rotation(
     record: &csv::StringRecord,
     matrix: Option<&[usize]>,
     quat: Option<&[usize]>,
-) -> Result<Option<DMat3>, (String, String)> {
+) -> Result<Option<CheckedRotation>, (String, String)> {
     let cells = |cols: &[usize]| -> Vec<String> {
         cols.iter()
             .map(|&c| record.get(c).unwrap_or("").to_string())
@@ -440,7 +654,7 @@ fn parse_rotation(
                     .ok_or_else(|| {
                         (
                             names(i),
-                            format!("`{}` = `{v}` is not a finite number", names(i)),
+                            format!("`{}` = `{}` is not a finite number", names(i), cut(v)),
                         )
                     })
             })
@@ -463,4 +677,44 @@ fn parse_rotation(
             .map_err(|m| ("qw".into(), m));
     }
     Ok(None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn echoed_values_are_cut_at_the_documented_length() {
+        assert_eq!(cut("det1"), "det1");
+        let long = "é".repeat(10_000);
+        let c = cut(&long);
+        assert_eq!(c.chars().filter(|&ch| ch == 'é').count(), MAX_ECHO_CHARS);
+        assert!(c.ends_with("… (20000 bytes)"), "{c}");
+        let message = format!("invalid type: string \"{long}\", expected f64");
+        let m = cut_message(&message);
+        assert!(m.len() < 300 && m.ends_with("expected f64"), "{m}");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_ignored() {
+        assert_eq!(strip_bom("\u{feff}{}"), "{}");
+        assert_eq!(strip_bom("{}"), "{}");
+    }
+
+    #[test]
+    fn the_nth_occurrence_of_an_id_is_located() {
+        let text = "{\n \"phantoms\": [\n  {\"id\": \"a\"},\n  {\"id\": \"a\"}\n ]\n}";
+        assert_eq!(json_line_nth(text, "phantoms", "a", 0), Some((3, 10)));
+        assert_eq!(json_line_nth(text, "phantoms", "a", 1), Some((4, 10)));
+        assert_eq!(json_line_nth(text, "phantoms", "a", 2), None);
+    }
+
+    #[test]
+    fn implausible_positions_are_refused() {
+        assert!(plausible_position([1.0, 2.0, 3.0]).is_ok());
+        assert!(plausible_position([0.0, 0.0, MAX_ABS_MM]).is_ok());
+        let e = plausible_position([0.0, 1e308, 0.0]).unwrap_err();
+        assert!(e.contains("1e308") && e.contains("implausible"), "{e}");
+        assert!(plausible_position([f64::NAN, 0.0, 0.0]).is_err());
+    }
 }

@@ -25,14 +25,20 @@ use crate::diagnostic::Diagnostic;
 use crate::output;
 use crate::scenario::{self, hex};
 use assemble::{MtpmPoints, Scored, assemble};
-use input::{RunMeasurement, load_measured_csv, load_measured_json, load_truths_from};
+use input::{
+    RunMeasurement, check_same_entities, load_measured_csv, load_measured_json, load_truths_from,
+};
 use stats::Confidence;
-use table::Report;
+use table::{Report, Table};
 
 /// Where the software's results are.
 #[derive(Debug, Clone)]
 pub enum MeasuredSource {
-    /// A file of this name in every run folder (default `measured.json`).
+    /// The default: `measured.json` if any run folder holds one; else the one `measured*.json`
+    /// name the run folders hold (e.g. `measured-rsasim-dlt-markers.json`, said in a note);
+    /// several names are an error listing them.
+    Auto,
+    /// A file of this name in every run folder.
     PerRun(String),
     /// One CSV long table for all runs.
     Csv(PathBuf),
@@ -70,7 +76,23 @@ pub fn evaluate_with_truth(
     let truth_root = truth_dir.unwrap_or(out);
     truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
     let truths = load_truths_from(truth_root, out)?;
-    let measurements: BTreeMap<String, RunMeasurement> = match &options.measured {
+    check_same_entities(&truths)?;
+    let mut notes = Vec::new();
+    let measured = match &options.measured {
+        MeasuredSource::Auto => {
+            let (name, note) = default_results_name(&truths)?;
+            notes.extend(note);
+            MeasuredSource::PerRun(name)
+        }
+        other => other.clone(),
+    };
+    let results_file = match &measured {
+        MeasuredSource::Csv(file) => file.display().to_string(),
+        MeasuredSource::PerRun(name) => name.clone(),
+        MeasuredSource::Auto => String::new(),
+    };
+    let measurements: BTreeMap<String, RunMeasurement> = match &measured {
+        MeasuredSource::Auto => BTreeMap::new(),
         MeasuredSource::Csv(file) => load_measured_csv(file, &truths)?,
         MeasuredSource::PerRun(name) => {
             let mut found = BTreeMap::new();
@@ -92,7 +114,8 @@ pub fn evaluate_with_truth(
         }
     };
     if measurements.is_empty() {
-        let what = match &options.measured {
+        let what = match &measured {
+            MeasuredSource::Auto => "no results found".to_string(),
             MeasuredSource::PerRun(name) => format!(
                 "no run folder under {} holds a {name}",
                 out.join("runs").display()
@@ -105,7 +128,8 @@ pub fn evaluate_with_truth(
 
     let scenario_file = truth_root.join("scenario.toml");
     let loaded = scenario::load(&scenario_file)?;
-    let mtpm_points = mtpm_points(&loaded, &truths);
+    let (mtpm_points, mtpm_notes) = mtpm_points(&loaded, &truths);
+    notes.extend(mtpm_notes);
     let scored: Vec<Scored> = truths
         .iter()
         .map(|t| Scored {
@@ -115,6 +139,14 @@ pub fn evaluate_with_truth(
         .collect();
     let (tables, mtpm, group_analyses, excluded, runs_scored) =
         assemble(&scored, &mtpm_points, &options.confidence);
+    check_finite(&tables, mtpm.as_ref(), &results_file)?;
+    let repaired_rotations: usize = measurements.values().map(|m| m.repaired_rotations).sum();
+    if repaired_rotations > 0 {
+        notes.push(format!(
+            "{repaired_rotations} rotation(s) were re-orthonormalised (deviation from a proper rotation above round-off, at most {:e}, e.g. values rounded to 6 decimals)",
+            rotation::REPAIR_TOLERANCE
+        ));
+    }
     let manifest_sha256 = std::fs::read(truth_root.join("manifest.json"))
         .map(|b| {
             format!(
@@ -132,6 +164,9 @@ pub fn evaluate_with_truth(
         manifest_sha256,
         summary: summary(&loaded.scenario, truths.len()),
         software,
+        results_file,
+        repaired_rotations,
+        notes,
         confidence: options.confidence,
         runs_scored,
         excluded,
@@ -142,10 +177,24 @@ pub fn evaluate_with_truth(
 }
 
 /// Points for MTPM per model: its beads (local frame, recovered from the first run's truth),
-/// or the corners of its mesh's bounding box when it has no beads.
-fn mtpm_points(loaded: &scenario::LoadedScenario, truths: &[input::TruthRun]) -> MtpmPoints {
+/// or the corners of its mesh's bounding box when it has no beads. A model that gets no points
+/// (its mesh cannot be built, or it has neither beads nor a mesh) has no MTPM column; the notes
+/// say which and why.
+fn mtpm_points(
+    loaded: &scenario::LoadedScenario,
+    truths: &[input::TruthRun],
+) -> (MtpmPoints, Vec<String>) {
     let run = &truths[0].truth.run;
-    let models = crate::phantom::build(loaded).ok();
+    let built = crate::phantom::build(loaded);
+    let build_error = built.as_ref().err().map(|errors| {
+        errors
+            .iter()
+            .map(|d| d.message.clone())
+            .collect::<Vec<_>>()
+            .join("; ")
+    });
+    let models = built.ok();
+    let mut notes = Vec::new();
     let mut out = MtpmPoints::new();
     for p in run.phantoms.iter().filter(|p| p.kind != "calibration_box") {
         let pose = p.pose();
@@ -171,9 +220,97 @@ fn mtpm_points(loaded: &scenario::LoadedScenario, truths: &[input::TruthRun]) ->
                 })
                 .collect();
         }
+        if points.is_empty() {
+            notes.push(match &build_error {
+                Some(e) => format!(
+                    "no MTPM column for model {}: it has no beads and its mesh could not be built: {e}",
+                    p.id
+                ),
+                None => format!(
+                    "no MTPM column for model {}: it has neither beads nor a mesh",
+                    p.id
+                ),
+            });
+        }
         out.insert(p.id.clone(), points);
     }
-    out
+    (out, notes)
+}
+
+/// Every cell's trueness, precision and RMS must be finite where defined: measured values are
+/// bounded ([`input::MAX_ABS_MM`]), so anything else is a bug, reported instead of printed.
+fn check_finite(
+    tables: &[Table],
+    mtpm: Option<&Table>,
+    results: &str,
+) -> Result<(), Vec<Diagnostic>> {
+    for t in tables.iter().chain(mtpm) {
+        for row in &t.rows {
+            for c in row.cells.iter().flatten() {
+                let defined = [c.trueness, c.rms];
+                if defined.iter().any(|x| !x.is_finite()) || c.precision.is_infinite() {
+                    return Err(vec![
+                        Diagnostic::file_error(
+                            Path::new(results),
+                            format!(
+                                "table {} at noise level {}: a statistic is not finite",
+                                t.id, row.noise_level
+                            ),
+                        )
+                        .with_help("check the results for implausible values"),
+                    ]);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The default results name (see [`MeasuredSource::Auto`]), with a note when it is not
+/// `measured.json`.
+fn default_results_name(
+    truths: &[input::TruthRun],
+) -> Result<(String, Option<String>), Vec<Diagnostic>> {
+    const DEFAULT: &str = "measured.json";
+    if truths.iter().any(|t| t.dir.join(DEFAULT).is_file()) {
+        return Ok((DEFAULT.into(), None));
+    }
+    let mut names: Vec<String> = truths
+        .iter()
+        .filter_map(|t| std::fs::read_dir(&t.dir).ok())
+        .flat_map(|entries| entries.flatten())
+        .filter(|e| e.path().is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_string))
+        .filter(|n| n.starts_with("measured") && n.ends_with(".json"))
+        .collect();
+    names.sort();
+    names.dedup();
+    match names.as_slice() {
+        [] => Ok((DEFAULT.into(), None)),
+        [one] => Ok((
+            one.clone(),
+            Some(format!(
+                "results: {one} (no measured.json; the only results file name in the run folders)"
+            )),
+        )),
+        several => {
+            let dir = truths[0].dir.parent().unwrap_or(&truths[0].dir);
+            Err(vec![
+                Diagnostic::file_error(
+                    dir,
+                    format!(
+                        "no measured.json, and the run folders hold {} results files: {}",
+                        several.len(),
+                        several.join(", ")
+                    ),
+                )
+                .with_help(format!(
+                    "say which to score, e.g. --measured {}",
+                    several[0]
+                )),
+            ])
+        }
+    }
 }
 
 /// Human-readable lines describing the set-up, for the report header.

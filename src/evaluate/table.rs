@@ -83,6 +83,13 @@ pub struct Report {
     pub summary: Vec<String>,
     /// The software under test, as named in the measured files.
     pub software: Vec<String>,
+    /// The results scored: the file name in every run folder, or the CSV file.
+    pub results_file: String,
+    /// Rotations re-orthonormalised because they deviated (within tolerance) from a rotation.
+    pub repaired_rotations: usize,
+    /// What the reader must know: the results file chosen by default, repaired rotations, and
+    /// every table or column left out, with the reason.
+    pub notes: Vec<String>,
     /// τ's confidence and sidedness.
     pub confidence: Confidence,
     /// Runs scored.

@@ -15,8 +15,12 @@ pub struct Measured {
     pub format: String,
     /// Run id, as in `truth.json`.
     pub run: String,
-    /// Name and version of the software that measured, e.g. `"rsasim reconstruct 0.1.0"`.
+    /// Name and version of the software that measured, e.g. `"MyRSA 3.1"` or
+    /// `"rsasim reconstruct 0.1.0 (dlt, markers)"`.
     pub software: String,
+    /// The methods the software used, if it says (rsasim's reference program always does).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub methods: Option<MeasuredMethods>,
     /// Reconstructed source (focus) positions.
     #[serde(default)]
     pub sources: Vec<MeasuredPoint>,
@@ -26,6 +30,17 @@ pub struct Measured {
     /// Reconstructed phantom poses.
     #[serde(default)]
     pub phantoms: Vec<MeasuredPose>,
+}
+
+/// The methods a reconstruction used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredMethods {
+    /// How the scene was calibrated, e.g. `dlt` or `selvik`.
+    pub calibration: String,
+    /// How each model was found, by phantom id, e.g. `{"femur": "markers"}`.
+    #[serde(default)]
+    pub models: std::collections::BTreeMap<String, String>,
 }
 
 /// A reconstructed position.

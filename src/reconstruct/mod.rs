@@ -76,29 +76,157 @@ impl ModelMethod {
     }
 }
 
-/// What `reconstruct` did.
-pub struct Summary {
-    /// Runs reconstructed (a measured.json written).
-    pub runs: usize,
-    /// Runs that failed, with the reason.
-    pub failed: Vec<(String, String)>,
+/// Options of `rsasim reconstruct`.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// How every beamline is calibrated.
+    pub method: Method,
+    /// How every model is found; `None`: by [`ModelMethod::for_model`].
+    pub model_method: Option<ModelMethod>,
+    /// File name of the results in every run folder; `None`: [`default_results_name`].
+    pub measured: Option<String>,
+    /// Replace a results file of that name even when another software wrote it.
+    pub overwrite: bool,
 }
 
-/// Reconstructs every run folder of `out` and writes `measured.json` beside its images, calibrating
-/// every beamline by `method` and finding each model by `model_method` (`None`: markers for a
+/// A run's entity that could not be reconstructed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EntityFailure {
+    /// Run id.
+    pub run: String,
+    /// What and why, e.g. `model femur (markers): not found: …`.
+    pub reason: String,
+}
+
+/// What `reconstruct` did.
+pub struct Summary {
+    /// Runs reconstructed (a results file written).
+    pub runs: usize,
+    /// Runs that failed as a whole, with the reason.
+    pub failed: Vec<(String, String)>,
+    /// The results file name written into every run folder.
+    pub measured: String,
+    /// Model fits attempted over every run.
+    pub models_tried: usize,
+    /// Model fits that found the model.
+    pub models_found: usize,
+    /// Detectors not calibrated and models not found, per run.
+    pub failures: Vec<EntityFailure>,
+}
+
+impl Summary {
+    /// Whether nothing at all was reconstructed: no run, or models to find and none found.
+    pub fn nothing_reconstructed(&self) -> bool {
+        self.runs == 0 || (self.models_tried > 0 && self.models_found == 0)
+    }
+}
+
+/// The default results name: `measured-rsasim-<calibration>-<model>.json`, the model part being
+/// the one method every model is found by, or `auto` when they differ (or there is no model).
+pub fn default_results_name(method: Method, model_label: &str) -> String {
+    format!("measured-rsasim-{}-{model_label}.json", method.name())
+}
+
+/// The model part of the results name and software: the method's name when every model uses
+/// the same one, else `auto`.
+fn model_label(setup: &exam::Setup, model_method: Option<ModelMethod>) -> &'static str {
+    if let Some(m) = model_method {
+        return m.name();
+    }
+    let mut used: Vec<&str> = setup
+        .nominal
+        .phantoms
+        .iter()
+        .filter(|p| p.kind != "calibration_box")
+        .map(|p| {
+            let has_beads = setup.beads.get(&p.id).is_some_and(|b| !b.is_empty());
+            ModelMethod::for_model(None, has_beads).name()
+        })
+        .collect();
+    used.sort_unstable();
+    used.dedup();
+    match used.as_slice() {
+        [one] => one,
+        _ => "auto",
+    }
+}
+
+/// A results name must be a plain file name `measured*.json` (what `evaluate` looks for by
+/// default), so it can never name one of the simulator's own records.
+fn check_results_name(out: &Path, name: &str) -> Result<(), Vec<Diagnostic>> {
+    let plain = !name.contains(['/', '\\', '\0']) && name.len() <= 200;
+    if plain && name.starts_with("measured") && name.ends_with(".json") {
+        return Ok(());
+    }
+    let shown: String = name.chars().take(80).collect();
+    Err(vec![
+        Diagnostic::file_error(
+            out,
+            format!("--measured `{shown}` is not a usable results file name"),
+        )
+        .with_help("give a plain file name measured*.json, e.g. measured-rsasim-dlt-markers.json"),
+    ])
+}
+
+/// Whether `file` may be (re)written: it does not exist, or rsasim wrote it (its `software`
+/// starts with [`pipeline::SOFTWARE_PREFIX`]).
+fn ours_or_absent(file: &Path) -> bool {
+    let Ok(meta) = std::fs::symlink_metadata(file) else {
+        return true;
+    };
+    // Results files are small; anything huge is not rsasim's and is not read.
+    if !meta.is_file() || meta.len() > 64 << 20 {
+        return false;
+    }
+    let Ok(bytes) = std::fs::read(file) else {
+        return false;
+    };
+    let text = String::from_utf8_lossy(&bytes);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    serde_json::from_str::<crate::output::Measured>(text)
+        .is_ok_and(|m| m.software.starts_with(pipeline::SOFTWARE_PREFIX))
+}
+
+/// Reconstructs every run folder of `out` and writes the results beside its images, under
+/// `options.measured` or [`default_results_name`], calibrating every beamline by
+/// `options.method` and finding each model by `options.model_method` (`None`: markers for a
 /// model with beads, silhouette for one without; see [`ModelMethod::for_model`]).
-pub fn reconstruct(
-    out: &Path,
-    method: Method,
-    model_method: Option<ModelMethod>,
-) -> Result<Summary, Vec<Diagnostic>> {
+///
+/// A results file of that name written by another software (or that does not parse) is never
+/// replaced unless `options.overwrite`: that is an error listing the files, and nothing is
+/// written.
+pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnostic>> {
     let setup = exam::load_setup(out)?;
     let runs = exam::run_folders(out)?;
+    let label = model_label(&setup, options.model_method);
+    let name = options
+        .measured
+        .clone()
+        .unwrap_or_else(|| default_results_name(options.method, label));
+    check_results_name(out, &name)?;
+    if !options.overwrite {
+        let foreign: Vec<Diagnostic> = runs
+            .iter()
+            .map(|(_, dir)| dir.join(&name))
+            .filter(|file| !ours_or_absent(file))
+            .map(|file| {
+                Diagnostic::file_error(
+                    &file,
+                    "another software's results (or an unreadable file): rsasim reconstruct does not replace it",
+                )
+                .with_help("pass --measured NAME to write elsewhere, or --overwrite to replace it")
+            })
+            .collect();
+        if !foreign.is_empty() {
+            return Err(foreign);
+        }
+    }
+    let software = pipeline::software(options.method, label);
     // Each mesh model that will be fitted by its outline is prepared once for all runs.
     let mut outlines = BTreeMap::new();
     for (id, mesh) in &setup.meshes {
         let has_beads = setup.beads.get(id).is_some_and(|b| !b.is_empty());
-        if ModelMethod::for_model(model_method, has_beads) == ModelMethod::Silhouette {
+        if ModelMethod::for_model(options.model_method, has_beads) == ModelMethod::Silhouette {
             let model = model_outline::OutlineModel::new(mesh).map_err(|e| {
                 vec![Diagnostic::file_error(
                     &out.join("phantoms"),
@@ -109,28 +237,47 @@ pub fn reconstruct(
         }
     }
     let methods = pipeline::Methods {
-        calibration: method,
-        model: model_method,
+        calibration: options.method,
+        model: options.model_method,
     };
-    let results: Vec<(String, Result<(), String>)> = runs
+    let results: Vec<(String, Result<pipeline::RunResult, String>)> = runs
         .par_iter()
         .map(|(id, dir)| {
-            let r = pipeline::reconstruct_run(&setup, &outlines, id, dir, methods).and_then(|m| {
-                let mut bytes = serde_json::to_vec_pretty(&m).map_err(|e| e.to_string())?;
-                bytes.push(b'\n');
-                write_atomic(&dir.join("measured.json"), &bytes)
-                    .map(|_| ())
-                    .map_err(|e| e.to_string())
-            });
+            let r = pipeline::reconstruct_run(&setup, &outlines, id, dir, methods, &software)
+                .and_then(|r| {
+                    let mut bytes =
+                        serde_json::to_vec_pretty(&r.measured).map_err(|e| e.to_string())?;
+                    bytes.push(b'\n');
+                    write_atomic(&dir.join(&name), &bytes)
+                        .map(|_| r)
+                        .map_err(|e| format!("writing {}: {e}", dir.join(&name).display()))
+                });
             (id.clone(), r)
         })
         .collect();
-    let failed: Vec<(String, String)> = results
-        .iter()
-        .filter_map(|(id, r)| r.as_ref().err().map(|e| (id.clone(), e.clone())))
-        .collect();
-    Ok(Summary {
-        runs: results.len() - failed.len(),
-        failed,
-    })
+    let mut summary = Summary {
+        runs: 0,
+        failed: Vec::new(),
+        measured: name,
+        models_tried: 0,
+        models_found: 0,
+        failures: Vec::new(),
+    };
+    for (id, r) in results {
+        match r {
+            Ok(r) => {
+                summary.runs += 1;
+                summary.models_tried += r.models_tried;
+                summary.models_found += r.models_found;
+                summary
+                    .failures
+                    .extend(r.failures.into_iter().map(|reason| EntityFailure {
+                        run: id.clone(),
+                        reason,
+                    }));
+            }
+            Err(e) => summary.failed.push((id, e)),
+        }
+    }
+    Ok(summary)
 }

@@ -19,7 +19,9 @@ use super::silhouette::{GOOD_FIT_PX, SilhouetteView, fit_silhouette};
 use super::{Method, ModelMethod};
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
-use crate::output::measured::{FitQuality, MEASURED_FORMAT, Measured, MeasuredPoint, MeasuredPose};
+use crate::output::measured::{
+    FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
+};
 use crate::scenario::PlateRole;
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
@@ -45,21 +47,32 @@ pub struct Methods {
     pub model: Option<ModelMethod>,
 }
 
-/// The software's name in `measured.json`, naming the calibration and model methods.
-pub fn software(methods: Methods) -> String {
-    let calibration = match methods.calibration {
-        Method::Dlt => "DLT + LM",
-        Method::Selvik => "Selvik: fiducial homography + control focus",
-    };
-    let model = match methods.model {
-        Some(ModelMethod::Markers) => "marker-based",
-        Some(ModelMethod::Silhouette) => "model-based (silhouette)",
-        None => "marker-based, or model-based (silhouette) for models without beads",
-    };
+/// What `software` of every results file rsasim writes starts with; a results file whose
+/// `software` does not is another program's.
+pub const SOFTWARE_PREFIX: &str = "rsasim reconstruct ";
+
+/// The software's name in the results file: `rsasim reconstruct <version> (<calibration>,
+/// <model>)`, e.g. `rsasim reconstruct 0.1.0 (dlt, markers)`; `model` is the model method's
+/// name, or `auto` when models use different methods (the file's `methods` says which).
+pub fn software(calibration: Method, model: &str) -> String {
     format!(
-        "rsasim reconstruct {} ({calibration}, {model})",
-        env!("CARGO_PKG_VERSION")
+        "{SOFTWARE_PREFIX}{} ({}, {model})",
+        env!("CARGO_PKG_VERSION"),
+        calibration.name()
     )
+}
+
+/// One run's reconstruction and what could not be found in it.
+pub struct RunResult {
+    /// The results file's contents.
+    pub measured: Measured,
+    /// Detectors that could not be calibrated and models that could not be found, each with
+    /// the reason, e.g. `model femur: not found: 2 beads visible`.
+    pub failures: Vec<String>,
+    /// Models (non-box phantoms) attempted.
+    pub models_tried: usize,
+    /// Models found.
+    pub models_found: usize,
 }
 
 /// What the calibration knows of each plate of the box: its role and whether it faces the beamline.
@@ -70,16 +83,18 @@ struct PlateUse {
 }
 
 /// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
-/// the result, as a real software would report a failure.
-/// Every beamline is calibrated by `methods.calibration`; each model is found by
-/// `methods.model`, with the outline models of `outlines` (by phantom id) for model-based RSA.
+/// the result, as a real software would report a failure, and listed in
+/// [`RunResult::failures`]. Every beamline is calibrated by `methods.calibration`; each model is
+/// found by `methods.model`, with the outline models of `outlines` (by phantom id) for
+/// model-based RSA. `software` names the program in the file.
 pub fn reconstruct_run(
     setup: &Setup,
     outlines: &BTreeMap<String, OutlineModel>,
     run_id: &str,
     dir: &Path,
     methods: Methods,
-) -> Result<Measured, String> {
+    software: &str,
+) -> Result<RunResult, String> {
     let method = methods.calibration;
     let nominal = &setup.nominal;
     let box_id = setup
@@ -98,11 +113,17 @@ pub fn reconstruct_run(
     let mut measured = Measured {
         format: MEASURED_FORMAT.into(),
         run: run_id.into(),
-        software: software(methods),
+        software: software.into(),
+        methods: Some(MeasuredMethods {
+            calibration: method.name().into(),
+            models: BTreeMap::new(),
+        }),
         sources: vec![],
         detectors: vec![],
         phantoms: vec![],
     };
+    let mut failures = Vec::new();
+    let (mut models_tried, mut models_found) = (0, 0);
     let (Some(box_id), Some(exposure)) = (box_id, calibration_exposure) else {
         return Err(
             "the scenario has no calibration box in any exposure: the scene cannot be calibrated"
@@ -188,7 +209,7 @@ pub fn reconstruct_run(
             Ok(c) => {
                 beamlines.insert(det.id.clone(), (c, det));
             }
-            Err(e) => eprintln!("{run_id}: detector {}: calibration failed: {e}", det.id),
+            Err(e) => failures.push(format!("detector {}: calibration failed: {e}", det.id)),
         }
     }
     for (id, (c, det)) in &beamlines {
@@ -226,7 +247,13 @@ pub fn reconstruct_run(
             continue;
         };
         let beads = setup.beads.get(&phantom.id).filter(|b| !b.is_empty());
-        let found = match ModelMethod::for_model(methods.model, beads.is_some()) {
+        let model_method = ModelMethod::for_model(methods.model, beads.is_some());
+        if let Some(m) = measured.methods.as_mut() {
+            m.models
+                .insert(phantom.id.clone(), model_method.name().into());
+        }
+        models_tried += 1;
+        let found = match model_method {
             ModelMethod::Markers => match beads {
                 Some(beads) => {
                     find_model(dir, &exposure.id, &beamlines, beads, phantom.position_mm)
@@ -245,14 +272,26 @@ pub fn reconstruct_run(
             },
         };
         match found {
-            Ok(pose) => measured.phantoms.push(MeasuredPose {
-                id: phantom.id.clone(),
-                ..pose
-            }),
-            Err(e) => eprintln!("{run_id}: model {}: not found: {e}", phantom.id),
+            Ok(pose) => {
+                models_found += 1;
+                measured.phantoms.push(MeasuredPose {
+                    id: phantom.id.clone(),
+                    ..pose
+                })
+            }
+            Err(e) => failures.push(format!(
+                "model {} ({}): not found: {e}",
+                phantom.id,
+                model_method.name()
+            )),
         }
     }
-    Ok(measured)
+    Ok(RunResult {
+        measured,
+        failures,
+        models_tried,
+        models_found,
+    })
 }
 
 /// The predicted blob of a bead: projected centre and expected area.

@@ -93,6 +93,9 @@ pub fn report() -> Report {
             "Protocol: 2 noise levels × 5 runs".into(),
         ],
         software: vec!["ExampleRSA 1.0 <beta>".into()],
+        results_file: "measured.json".into(),
+        repaired_rotations: 0,
+        notes: vec!["no MTPM column for model knee: it has neither beads nor a mesh".into()],
         confidence: Confidence::default(),
         runs_scored: 10,
         excluded: vec![Excluded {

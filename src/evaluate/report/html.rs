@@ -107,6 +107,11 @@ fn facts(s: &mut String, r: &Report) {
             format!("<code>{}</code>", esc(&r.manifest_sha256)),
         ),
         ("Software under test", esc(&software)),
+        ("Results file", esc(&r.results_file)),
+        (
+            "Rotations re-orthonormalised",
+            r.repaired_rotations.to_string(),
+        ),
         ("Confidence", esc(&confidence_text(&r.confidence))),
         ("Runs scored", r.runs_scored.to_string()),
     ] {
@@ -116,6 +121,13 @@ fn facts(s: &mut String, r: &Report) {
     if !r.summary.is_empty() {
         s.push_str("<h2>Scenario</h2>\n<ul>\n");
         for line in &r.summary {
+            let _ = writeln!(s, "<li>{}</li>", esc(line));
+        }
+        s.push_str("</ul>\n");
+    }
+    if !r.notes.is_empty() {
+        s.push_str("<h2>Notes</h2>\n<ul>\n");
+        for line in &r.notes {
             let _ = writeln!(s, "<li>{}</li>", esc(line));
         }
         s.push_str("</ul>\n");

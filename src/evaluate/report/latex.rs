@@ -25,6 +25,15 @@ pub fn latex(report: &Report) -> String {
     );
     let _ = writeln!(
         s,
+        "% Software under test: {}; results file {}",
+        comment(&report.software.join(", ")),
+        comment(&report.results_file)
+    );
+    for note in &report.notes {
+        let _ = writeln!(s, "% Note: {}", comment(note));
+    }
+    let _ = writeln!(
+        s,
         "% Precision: {}",
         comment(&confidence_text(&report.confidence))
     );

@@ -84,6 +84,12 @@ fn header(s: &mut String, r: &Report) {
         r.manifest_sha256.replace('`', "'")
     );
     let _ = writeln!(s, "- **Software under test:** {}", esc(&software));
+    let _ = writeln!(s, "- **Results file:** {}", esc(&r.results_file));
+    let _ = writeln!(
+        s,
+        "- **Rotations re-orthonormalised:** {}",
+        r.repaired_rotations
+    );
     let _ = writeln!(
         s,
         "- **Confidence:** {}",
@@ -93,6 +99,13 @@ fn header(s: &mut String, r: &Report) {
     if !r.summary.is_empty() {
         s.push_str("## Scenario\n\n");
         for line in &r.summary {
+            let _ = writeln!(s, "- {}", esc(line));
+        }
+        s.push('\n');
+    }
+    if !r.notes.is_empty() {
+        s.push_str("## Notes\n\n");
+        for line in &r.notes {
             let _ = writeln!(s, "- {}", esc(line));
         }
         s.push('\n');

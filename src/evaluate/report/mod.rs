@@ -119,6 +119,32 @@ pub fn write_reports(
     Ok(written)
 }
 
+/// The default report folder name: `report-<stem of the results file>`, e.g.
+/// `report-measured-rsasim-dlt-markers`, so two softwares' or methods' reports never share a
+/// folder. Characters other than letters, digits, `-`, `_` and `.` become `_`.
+pub fn default_folder_name(report: &Report) -> String {
+    let stem = std::path::Path::new(&report.results_file)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem: String = stem
+        .chars()
+        .take(100)
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if stem.is_empty() || stem.chars().all(|c| c == '.') {
+        "report".into()
+    } else {
+        format!("report-{stem}")
+    }
+}
+
 /// The columns of `table`, left to right, each with its group.
 pub(crate) fn columns(table: &Table) -> impl Iterator<Item = (&ColumnGroup, &Column)> {
     table
