@@ -34,7 +34,7 @@ fn blind(tmp: &Path) -> (PathBuf, PathBuf) {
 
 fn options() -> Options {
     Options {
-        measured: MeasuredSource::PerRun("measured.json".into()),
+        measured: MeasuredSource::Auto,
         confidence: Confidence {
             level: 0.95,
             sided: Sided::One,

@@ -712,11 +712,18 @@ fn a_folder_mixing_runs_of_different_scenarios_is_an_error_naming_the_run() {
     let (dir, truth) = &all[3];
     let mut other = truth.clone();
     other.run.phantoms.retain(|p| p.id != "femur");
-    std::fs::write(
-        dir.join("truth.json"),
-        serde_json::to_vec_pretty(&other).unwrap(),
-    )
-    .unwrap();
+    let bytes = serde_json::to_vec_pretty(&other).unwrap();
+    std::fs::write(dir.join("truth.json"), &bytes).unwrap();
+    // A manifest that lists the mixed folder as it is (as if two outputs were merged and indexed
+    // again), so that the truth verifies and the mix itself must be found.
+    let manifest_file = out.join("manifest.json");
+    let mut manifest: rsasim::output::Manifest =
+        serde_json::from_slice(&std::fs::read(&manifest_file).unwrap()).unwrap();
+    let rel = format!("runs/{}/truth.json", truth.run.id);
+    let entry = manifest.files.iter_mut().find(|f| f.path == rel).unwrap();
+    entry.sha256 = sha256_hex(&bytes);
+    entry.bytes = bytes.len() as u64;
+    std::fs::write(&manifest_file, manifest.to_bytes()).unwrap();
     let mut m = measured_with_known_errors(truth, 3);
     m.phantoms.retain(|p| p.id != "femur");
     std::fs::write(
@@ -748,4 +755,12 @@ fn a_missing_mtpm_column_is_explained_in_the_report_and_on_stderr() {
     assert!(stderr.contains(&format!("note: {said}")), "{stderr}");
     let md = std::fs::read_to_string(out.join("report-measured/report.md")).unwrap();
     assert!(md.contains("## Notes") && md.contains(said), "{md}");
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }

@@ -171,7 +171,18 @@ fn evaluate_states_that_the_truth_was_verified() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (code, err) = evaluate(&out);
     assert_eq!(code, 0, "{err}");
-    let md = std::fs::read_to_string(out.join("report/report.md")).unwrap();
+    // The report folder is named after the results file reconstruct wrote.
+    let report = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("report-")
+        })
+        .unwrap();
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
     assert!(md.contains("verified against it"), "{md}");
 }
 
