@@ -109,7 +109,10 @@ fn run(
 ) -> Result<(), u8> {
     let out = out.unwrap_or_else(|| std::path::Path::new("out").join(&plan.loaded.scenario.name));
     if let Some(truth) = truth_dir {
-        simulate::check_truth_dir(&out, truth).map_err(|e| report_errors(&[e]))?;
+        simulate::check_truth_dir(&out, truth).map_err(|e| report_errors(&e))?;
+        simulate::blind_warnings(plan)
+            .iter()
+            .for_each(|w| eprintln!("{w}"));
     }
     for dir in std::iter::once(out.as_path()).chain(truth_dir) {
         if dir.exists() && !force {

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::expand::{self, Run};
 use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
@@ -186,7 +186,7 @@ fn sorted(mut files: Vec<ManifestFile>) -> Vec<ManifestFile> {
 
 /// Checks a blind layout's truth folder against the images folder `out_dir`: they must differ
 /// and neither may lie inside the other (the truth would be handed out with the images).
-pub fn check_truth_dir(out_dir: &Path, truth_dir: &Path) -> Result<(), Diagnostic> {
+pub fn check_truth_dir(out_dir: &Path, truth_dir: &Path) -> Result<(), Vec<Diagnostic>> {
     let absolute = |p: &Path| {
         std::path::absolute(p)
             .map(|a| {
@@ -198,22 +198,41 @@ pub fn check_truth_dir(out_dir: &Path, truth_dir: &Path) -> Result<(), Diagnosti
     };
     let (out, truth) = (absolute(out_dir), absolute(truth_dir));
     if truth.starts_with(&out) || out.starts_with(&truth) {
-        return Err(Diagnostic::file_error(
-            truth_dir,
-            format!(
-                "the truth folder must lie outside the images folder {} (and not contain it)",
-                out_dir.display()
-            ),
-        )
-        .with_help("e.g. --out blind/knee --truth-dir truth/knee: hand out only blind/knee"));
+        return Err(vec![
+            Diagnostic::file_error(
+                truth_dir,
+                format!(
+                    "the truth folder must lie outside the images folder {} (and not contain it)",
+                    out_dir.display()
+                ),
+            )
+            .with_help("e.g. --out blind/knee --truth-dir truth/knee: hand out only blind/knee"),
+        ]);
     }
     if truth.file_name().is_none() {
-        return Err(Diagnostic::file_error(
+        return Err(vec![Diagnostic::file_error(
             truth_dir,
             "give a folder name for the truth (e.g. --truth-dir out/knee-truth)",
-        ));
+        )]);
     }
     Ok(())
+}
+
+/// Warnings for a blind layout: a seed below 2^32 can be found by trying seeds until the
+/// regenerated images match the blind folder's (its nominal set-up is all one needs besides).
+pub fn blind_warnings(plan: &Plan) -> Vec<Diagnostic> {
+    let seed = plan.loaded.scenario.seed;
+    if seed >= 1 << 32 {
+        return Vec::new();
+    }
+    vec![plan
+        .loaded
+        .locator
+        .warning(
+            KeyPath::root().key("seed"),
+            format!("seed {seed} is small enough to be guessed: with the blind folder's nominal set-up, anyone can try seeds until the images match and so recover the truth"),
+        )
+        .with_help("for a blind study use a large random seed, e.g. the number `od -An -N7 -tu8 /dev/urandom` prints, and keep the scenario file with the truth")]
 }
 
 /// Pretty JSON with a final newline.

@@ -133,7 +133,15 @@ fn an_edited_images_manifest_breaks_the_binding() {
         "{err}"
     );
     let o = rsasim(&["verify", s(&truth)], &[]);
-    assert_eq!(o.status.code(), Some(2));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains(&format!(
+            "{}: is not the images folder this truth was written for",
+            file.display()
+        )),
+        "{text}"
+    );
 }
 
 #[test]

@@ -83,7 +83,7 @@ pub fn verify_truth(
             return Err(binding
                 .into_iter()
                 .map(|f| {
-                    Diagnostic::file_error(Path::new(&f.path), f.problem).with_help(
+                    Diagnostic::file_error(&images.join(&f.path), f.problem).with_help(
                         "evaluate the images folder together with the truth folder written in the same run",
                     )
                 })

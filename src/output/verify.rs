@@ -324,7 +324,7 @@ pub fn bound_images_folder(
 }
 
 /// Checks that `images` is the folder a truth manifest was written for (by the SHA-256 of its
-/// manifest file). Findings name the images folder's `manifest.json`.
+/// manifest file). Findings name `manifest.json` of the images folder (relative to it).
 pub fn check_binding(truth: &Manifest, images: &Path) -> Vec<Finding> {
     let Some(binding) = &truth.images else {
         return vec![Finding::new(
@@ -333,12 +333,9 @@ pub fn check_binding(truth: &Manifest, images: &Path) -> Vec<Finding> {
         )];
     };
     match manifest_file_sha256(images) {
-        Err(e) => vec![Finding::new(
-            format!("{}/manifest.json", images.display()),
-            format!("cannot read: {e}"),
-        )],
+        Err(e) => vec![Finding::new("manifest.json", format!("cannot read: {e}"))],
         Ok(sha) if sha != binding.manifest_sha256 => vec![Finding::new(
-            format!("{}/manifest.json", images.display()),
+            "manifest.json",
             format!(
                 "is not the images folder this truth was written for (its SHA-256 is {sha}, the truth folder binds {})",
                 binding.manifest_sha256
@@ -379,8 +376,10 @@ pub fn verify(dir: &Path, images: Option<&Path>) -> Vec<Verification> {
         ));
         return vec![first];
     }
-    first.problems.extend(check_binding(&manifest, &images_dir));
-    let second = verify_folder(&images_dir);
+    let mut second = verify_folder(&images_dir);
+    second
+        .problems
+        .extend(check_binding(&manifest, &images_dir));
     vec![first, second]
 }
 
@@ -392,10 +391,6 @@ pub fn render(results: &[Verification]) -> String {
         let name = |path: &str| {
             if path.is_empty() {
                 v.folder.display().to_string()
-            } else if Path::new(path).is_absolute()
-                || path.starts_with(&*v.folder.to_string_lossy())
-            {
-                path.to_string()
             } else {
                 v.folder.join(path).display().to_string()
             }
