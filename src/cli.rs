@@ -38,6 +38,10 @@ pub struct RunArgs {
     /// Replace the output folder if it already exists (it is swapped in only once complete).
     #[arg(long)]
     pub force: bool,
+    /// Lift the caps on runs, pixels per image, bytes on disk and memory (see the README,
+    /// "Limits"); the 4 GiB limit of a classic TIFF file still applies.
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 /// The subcommands.
@@ -47,11 +51,17 @@ pub enum Command {
     Validate {
         /// The scenario file to check.
         scenario: PathBuf,
+        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
+        #[arg(long)]
+        allow_large: bool,
     },
     /// Print every concrete run (poses, seeds, noise level) as JSON, in the box frame.
     Expand {
         /// The scenario file to expand.
         scenario: PathBuf,
+        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
+        #[arg(long)]
+        allow_large: bool,
     },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.
