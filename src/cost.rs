@@ -333,7 +333,7 @@ mod tests {
         assert_eq!(human_bytes(512), "512 B");
         assert_eq!(human_bytes(2_500_000_000), "2.5 GB");
         assert_eq!(human_bytes(90_000_000), "90 MB");
-        assert_eq!(human_bytes(u64::MAX), "18446 PB");
+        assert_eq!(human_bytes(u64::MAX), "18447 PB");
     }
 
     #[test]

@@ -148,6 +148,69 @@ const CASES: &[(&str, &str, &str, &str, &str)] = &[
     ),
     ("bad syntax", "seed = 1", "seed = = 1", "", "seed = = 1"),
     (
+        "vector with an extra number",
+        "position_mm = [0.0, 0.0, 1000.0]",
+        "position_mm = [0.0, 0.0, 1000.0, 5.0]",
+        "expected exactly 3 numbers, got 4",
+        "position_mm = [0.0, 0.0, 1000.0, 5.0]",
+    ),
+    (
+        "pixel counts with a missing number",
+        "pixels = [64, 64]",
+        "pixels = [64]",
+        "expected exactly 2 numbers, got 1",
+        "pixels = [64]",
+    ),
+    (
+        "phantom outside every detector",
+        "position_mm = [10.0, 0.0, 0.0]",
+        "position_mm = [98.0, 0.0, 0.0]",
+        "phantom `beads` lies outside the field of every detector in run n0-r00",
+        "position_mm = [0.0, 0.0, 0.0]",
+    ),
+    (
+        "runs_per_level typo",
+        "runs_per_level = 1",
+        "runs_per_level = 1000000000",
+        "more than the cap of 100000",
+        "runs_per_level = 1000000000",
+    ),
+    (
+        "schema's largest detector as TIFF",
+        "pixels = [64, 64]",
+        "pixels = [65535, 65535]",
+        "more than the 4 GiB a classic TIFF file can hold",
+        "pixels = [65535, 65535]",
+    ),
+    (
+        "id longer than a file name",
+        "id = \"calibration\"",
+        "id = \"calibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibration\"",
+        "is 121 bytes long, more than 100",
+        "id = \"calibrationcalibration",
+    ),
+    (
+        "Windows device name as id",
+        "id = \"det1\"",
+        "id = \"NUL\"",
+        "`NUL` is a device name Windows reserves",
+        "id = \"NUL\"",
+    ),
+    (
+        "id with a trailing dot",
+        "id = \"det1\"",
+        "id = \"det1.\"",
+        "starts or ends with `.`",
+        "id = \"det1.\"",
+    ),
+    (
+        "image names equal but for case",
+        "[[exposures]]\nid = \"calibration\"",
+        "[[exposures]]\nid = \"Calibration\"\nphantoms = [\"beads\"]\n\n[[exposures]]\nid = \"calibration\"",
+        "same name on case-insensitive file systems",
+        "id = \"calibration\"",
+    ),
+    (
         "missing mesh",
         "",
         MESH_PHANTOM,
@@ -228,6 +291,11 @@ fn each_bad_scenario_is_named_located_and_writes_nothing() {
             );
             assert!(stderr.contains("nothing was written"), "{case}: {stderr}");
             assert!(
+                stderr.len() < 4_000,
+                "{case}: {} bytes of errors",
+                stderr.len()
+            );
+            assert!(
                 !out.exists() && !dir.path().join("out.partial").exists(),
                 "{case}: something was written"
             );
@@ -262,9 +330,11 @@ fn a_phantom_partly_outside_the_field_is_a_warning_not_an_error() {
     let file = dir.path().join("edge.toml");
     std::fs::write(
         &file,
+        // The detector's half-width of 100 mm at magnification 1.3 is 76.92 mm at the bead:
+        // a 1 mm bead at x = 76.9 mm straddles the edge.
         BASE.replacen(
             "position_mm = [10.0, 0.0, 0.0]",
-            "position_mm = [98.0, 0.0, 0.0]",
+            "position_mm = [76.9, 0.0, 0.0]",
             1,
         ),
     )
@@ -305,4 +375,66 @@ fn an_existing_output_folder_is_refused_without_force() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out.join("keep.txt").exists() && out.join("manifest.json").exists());
+}
+
+/// Writes a closed sphere of radius 10 mm as `ball.stl` into `dir`.
+fn write_ball(dir: &Path) {
+    let m = rsasim::phantom::TriMesh::uv_sphere(10.0, 16, 16);
+    rsasim::phantom::mesh_io::write_stl(&m, std::fs::File::create(dir.join("ball.stl")).unwrap())
+        .unwrap();
+}
+
+#[test]
+fn a_bead_never_visible_warns_with_its_phantom_and_the_images_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    write_ball(dir.path());
+    // B9 projects outside the detector in every image; P1 sits inside the ball, so its ray
+    // crosses the mesh in every image; P2 sits outside the ball, in the open.
+    let text = BASE.replacen(
+        "position_mm = [10.0, 0.0, 0.0]\n",
+        "position_mm = [10.0, 0.0, 0.0]\n\n[[phantoms.beads]]\nid = \"B9\"\nposition_mm = [98.0, 0.0, 0.0]\n",
+        1,
+    ) + r#"
+[[phantoms]]
+id = "ball"
+position_mm = [-40.0, 0.0, 0.0]
+
+[phantoms.mesh]
+file = "ball.stl"
+
+[[phantoms.mesh.beads]]
+id = "P1"
+position_mm = [0.0, 0.0, 5.0]
+
+[[phantoms.mesh.beads]]
+id = "P2"
+position_mm = [20.0, 0.0, 0.0]
+
+[[exposures]]
+id = "model"
+phantoms = ["ball"]
+"#;
+    let file = dir.path().join("beads.toml");
+    std::fs::write(&file, &text).unwrap();
+    let o = rsasim(&["validate", file.to_str().unwrap()], &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("beads.toml:{}:", line_of(&text, "id = \"B9\"")))
+            && stderr.contains(
+                "bead `B9` of phantom `beads` is visible in none of the 2 images it was checked in (outside the detector in 2"
+            ),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("beads.toml:{}:", line_of(&text, "id = \"P1\"")))
+            && stderr.contains(
+                "bead `P1` of phantom `ball` is visible in none of the 2 images it was checked in (outside the detector in 0, in a mesh's shadow in 2)"
+            ),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("`P2`") && !stderr.contains("`B1`"),
+        "{stderr}"
+    );
 }
