@@ -126,8 +126,7 @@ fn the_schemas_largest_detector_is_refused_before_it_runs() {
     );
     if rsasim::cost::available_memory_bytes().is_some_and(|m| m < 100_000_000_000) {
         assert!(
-            stderr.contains("the simulation needs about ")
-                && stderr.contains("available"),
+            stderr.contains("the simulation needs about ") && stderr.contains("available"),
             "{stderr}"
         );
     }
@@ -138,8 +137,7 @@ fn an_uncompressed_tiff_over_4_gib_is_refused_before_the_encoder_fails() {
     let text = BASE
         .replace("pixels = [64, 64]", "pixels = [46341, 46341]")
         .replace("[output]\n", "[output]\ntiff_compression = \"none\"\n");
-    let (code, _, stderr) =
-        with_scenario(&text, &["SCENARIO", "--out", "OUT", "--allow-large"]);
+    let (code, _, stderr) = with_scenario(&text, &["SCENARIO", "--out", "OUT", "--allow-large"]);
     assert_eq!(code, Some(2), "{stderr}");
     assert!(stderr.contains("4 GiB"), "{stderr}");
 }
@@ -160,7 +158,10 @@ fn many_runs_validate_run_by_run() {
     let text = BASE.replace("runs_per_level = 1", "runs_per_level = 20000");
     let (code, _, stderr) = with_scenario(&text, &["validate", "SCENARIO"]);
     assert_eq!(code, Some(0), "{stderr}");
-    assert!(stderr.contains("valid: 40000 runs, 40000 images"), "{stderr}");
+    assert!(
+        stderr.contains("valid: 40000 runs, 40000 images"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -175,7 +176,10 @@ fn a_600_kb_line_is_not_echoed_whole() {
         "{stderr}"
     );
     // A parse error on a long line: the excerpt is cut too.
-    let text = BASE.replace("seed = 1", &format!("seed = [{}\"x\"", "1, ".repeat(200_000)));
+    let text = BASE.replace(
+        "seed = 1",
+        &format!("seed = [{}\"x\"", "1, ".repeat(200_000)),
+    );
     let (code, _, stderr) = with_scenario(&text, &["validate", "SCENARIO"]);
     assert_eq!(code, Some(2), "{stderr}");
     assert!(stderr.len() < 3_000, "{} bytes of errors", stderr.len());
