@@ -248,9 +248,10 @@ impl Cost {
                 .with_help(override_help("use fewer runs, detectors, pixels or formats")),
             );
         }
-        if let Some(available) = available_memory {
-            if self.peak_memory_bytes > available {
-                out.push(
+        if let Some(available) = available_memory
+            && self.peak_memory_bytes > available
+        {
+            out.push(
                     loc.error(
                         root.key("detectors"),
                         format!(
@@ -264,7 +265,6 @@ impl Cost {
                         "use fewer pixels or runs, fewer threads (RAYON_NUM_THREADS=1), or a larger machine",
                     )),
                 );
-            }
         }
         out
     }

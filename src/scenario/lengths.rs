@@ -30,19 +30,17 @@ fn resolve<'a>(root: &'a Schema, s: &'a Schema) -> &'a Schema {
         .get("$ref")
         .and_then(Schema::as_str)
         .and_then(|r| r.strip_prefix("#/$defs/"))
+        && let Some(def) = root.get("$defs").and_then(|d| d.get(name))
     {
-        if let Some(def) = root.get("$defs").and_then(|d| d.get(name)) {
-            return resolve(root, def);
-        }
+        return resolve(root, def);
     }
     for key in ["anyOf", "oneOf"] {
-        if let Some(alternatives) = s.get(key).and_then(Schema::as_array) {
-            if let Some(a) = alternatives
+        if let Some(alternatives) = s.get(key).and_then(Schema::as_array)
+            && let Some(a) = alternatives
                 .iter()
                 .find(|a| a.get("type").and_then(Schema::as_str) != Some("null"))
-            {
-                return resolve(root, a);
-            }
+        {
+            return resolve(root, a);
         }
     }
     s
@@ -89,21 +87,22 @@ fn walk(
             let min = schema.get("minItems").and_then(Schema::as_u64);
             let max = schema.get("maxItems").and_then(Schema::as_u64);
             let n = items.len() as u64;
-            if let (Some(min), Some(max)) = (min, max) {
-                if min == max && n != min {
-                    let what = element_words(root, schema);
-                    out.push(
-                        loc.error(
-                            path.clone(),
-                            format!("expected exactly {min} {what}, got {n}"),
-                        )
-                        .with_help(format!(
-                            "`{}` takes {min} {what}, e.g. {}",
-                            last_key(path),
-                            example(min)
-                        )),
-                    );
-                }
+            if let (Some(min), Some(max)) = (min, max)
+                && min == max
+                && n != min
+            {
+                let what = element_words(root, schema);
+                out.push(
+                    loc.error(
+                        path.clone(),
+                        format!("expected exactly {min} {what}, got {n}"),
+                    )
+                    .with_help(format!(
+                        "`{}` takes {min} {what}, e.g. {}",
+                        last_key(path),
+                        example(min)
+                    )),
+                );
             }
             if let Some(item_schema) = schema.get("items") {
                 for (i, item) in items.iter().enumerate() {
