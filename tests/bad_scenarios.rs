@@ -438,3 +438,104 @@ phantoms = ["ball"]
         "{stderr}"
     );
 }
+
+/// A tiny deterministic generator (xorshift64*), so the mutation test needs no dependency.
+struct Mutator(u64);
+
+impl Mutator {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    fn pick<'a>(&mut self, items: &[&'a str]) -> &'a str {
+        items[(self.next() % items.len() as u64) as usize]
+    }
+
+    /// BASE with one line changed: a number replaced by an extreme one, an array grown, a
+    /// string replaced by one no file system accepts, or the line deleted or repeated.
+    fn mutate(&mut self, base: &str) -> String {
+        let mut lines: Vec<String> = base.lines().map(String::from).collect();
+        let i = (self.next() % lines.len() as u64) as usize;
+        let line = lines[i].clone();
+        let long = "x".repeat(300);
+        match self.next() % 5 {
+            0 => {
+                let number = self.pick(&[
+                    "-1",
+                    "0",
+                    "1e308",
+                    "nan",
+                    "inf",
+                    "-inf",
+                    "4294967296",
+                    "65535",
+                    "1000000000",
+                    "-0.0",
+                    "1e-300",
+                ]);
+                let mut out = String::new();
+                let mut replaced = false;
+                for token in line.split_inclusive([' ', '[', ',', ']']) {
+                    let digits = token.trim_end_matches([' ', '[', ',', ']']);
+                    if !replaced && !digits.is_empty() && digits.parse::<f64>().is_ok() {
+                        out.push_str(&token.replacen(digits, number, 1));
+                        replaced = true;
+                    } else {
+                        out.push_str(token);
+                    }
+                }
+                lines[i] = out;
+            }
+            1 => lines[i] = line.replacen(']', ", 5.0]", 1),
+            2 => {
+                let value = self.pick(&["", "CON", "a/b", "a:b", "é", "a.", "LONG"]);
+                let value = if value == "LONG" {
+                    long.as_str()
+                } else {
+                    value
+                };
+                if let (Some(a), Some(b)) = (line.find('"'), line.rfind('"')) {
+                    if a < b {
+                        lines[i] = format!("{}\"{value}\"{}", &line[..a], &line[b + 1..]);
+                    }
+                }
+            }
+            3 => {
+                lines.remove(i);
+            }
+            _ => lines.insert(i, line),
+        }
+        lines.join("\n") + "\n"
+    }
+}
+
+#[test]
+fn seeded_mutations_give_exit_0_or_a_located_error_and_never_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("m.toml");
+    let mut m = Mutator(0x5eed_0017);
+    let mut refused = 0;
+    for n in 0..120 {
+        let text = m.mutate(BASE);
+        std::fs::write(&file, &text).unwrap();
+        let o = rsasim(&["validate", file.to_str().unwrap()], &[]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let context = format!("mutation {n}:\n{text}\n--- stderr:\n{stderr}");
+        match o.status.code() {
+            Some(0) => assert!(stderr.contains(": valid: "), "{context}"),
+            Some(2) => {
+                refused += 1;
+                for line in stderr.lines().filter(|l| l.starts_with("error: ")) {
+                    assert!(line.contains("m.toml:"), "unlocated error in {context}");
+                }
+                assert!(stderr.len() < 8_000, "{} bytes: {context}", stderr.len());
+            }
+            code => panic!("exit {code:?} in {context}"),
+        }
+    }
+    // The mutations reach both outcomes.
+    assert!((20..100).contains(&refused), "{refused} of 120 refused");
+}
