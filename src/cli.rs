@@ -44,6 +44,10 @@ pub struct RunArgs {
     /// ranges). DIR must lie outside the --out folder. Score with `rsasim evaluate OUT --truth DIR`.
     #[arg(long, value_name = "DIR")]
     pub truth_dir: Option<PathBuf>,
+    /// Lift the caps on runs, pixels per image, bytes on disk and memory (see the README,
+    /// "Limits"); the 4 GiB limit of a classic TIFF file still applies.
+    #[arg(long)]
+    pub allow_large: bool,
 }
 
 /// The subcommands.
@@ -53,11 +57,17 @@ pub enum Command {
     Validate {
         /// The scenario file to check.
         scenario: PathBuf,
+        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
+        #[arg(long)]
+        allow_large: bool,
     },
     /// Print every concrete run (poses, seeds, noise level) as JSON, in the box frame.
     Expand {
         /// The scenario file to expand.
         scenario: PathBuf,
+        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
+        #[arg(long)]
+        allow_large: bool,
     },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.

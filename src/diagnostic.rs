@@ -5,12 +5,86 @@
 //! and value, so a check that only knows a key path (`detectors[1].bpp`) still points the user at
 //! the right line, and a parse error that only knows a byte offset still names its key path.
 
+use std::borrow::Cow;
 use std::fmt;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
+
+/// The longest piece of user text (a value, a quoted name, a source line) a message echoes, in
+/// characters. Longer text is cut to this length and marked `… (N more bytes)`, so a 600 KB TOML
+/// line or a 5 MB string never floods the terminal or a log.
+pub const ECHO_MAX_CHARS: usize = 200;
+
+/// `text` cut to [`ECHO_MAX_CHARS`] characters, with `… (N more bytes)` saying how much was left
+/// out. Every module that echoes a user's value in a message calls this (or relies on
+/// [`Diagnostic`]'s `Display`, which applies it to quoted text and the source line).
+pub fn cut(text: &str) -> Cow<'_, str> {
+    cut_at(text, ECHO_MAX_CHARS)
+}
+
+/// `text` cut to `max_chars` characters, with `… (N more bytes)` appended when anything was cut.
+fn cut_at(text: &str, max_chars: usize) -> Cow<'_, str> {
+    match text.char_indices().nth(max_chars) {
+        None => Cow::Borrowed(text),
+        Some((end, _)) => Cow::Owned(format!(
+            "{}… ({} more bytes)",
+            &text[..end],
+            text.len() - end
+        )),
+    }
+}
+
+/// A message with every quoted piece (between backticks or double quotes) longer than
+/// [`ECHO_MAX_CHARS`] cut, and the whole message bounded at four times that: the words that say
+/// what is wrong stay, the echoed value shrinks.
+fn cut_message(message: &str) -> Cow<'_, str> {
+    if message.chars().count() <= ECHO_MAX_CHARS {
+        return Cow::Borrowed(message);
+    }
+    let mut out = String::new();
+    let mut rest = message;
+    while let Some(open) = rest.find(['`', '"']) {
+        let quote = &rest[open..open + 1];
+        out.push_str(&rest[..=open]);
+        rest = &rest[open + 1..];
+        match rest.find(quote) {
+            Some(close) => {
+                out.push_str(&cut(&rest[..close]));
+                out.push_str(quote);
+                rest = &rest[close + 1..];
+            }
+            None => {
+                out.push_str(&cut(rest));
+                rest = "";
+            }
+        }
+    }
+    out.push_str(rest);
+    Cow::Owned(cut_at(&out, 4 * ECHO_MAX_CHARS).into_owned())
+}
+
+/// The part of a source line shown under a message: at most [`ECHO_MAX_CHARS`] characters around
+/// the 1-based column `col`, and the caret's column within that excerpt.
+fn source_excerpt(line: &str, col: usize) -> (String, usize) {
+    let chars = line.chars().count();
+    if chars <= ECHO_MAX_CHARS {
+        return (line.to_string(), col);
+    }
+    let start = col.saturating_sub(1 + ECHO_MAX_CHARS / 4).min(chars);
+    let skipped: usize = line.chars().take(start).map(char::len_utf8).sum();
+    let window = &line[skipped..];
+    let cut_window = cut(window);
+    if start == 0 {
+        (cut_window.into_owned(), col)
+    } else {
+        let lead = format!("({skipped} bytes before) …");
+        let caret = col - start + lead.chars().count();
+        (format!("{lead}{cut_window}"), caret)
+    }
+}
 
 /// How serious a diagnostic is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -126,8 +200,9 @@ impl fmt::Display for Diagnostic {
         if let Some(path) = self.key_path.as_ref().filter(|p| !p.0.is_empty()) {
             write!(f, ": `{path}`")?;
         }
-        write!(f, ": {}", self.message)?;
+        write!(f, ": {}", cut_message(&self.message))?;
         if let (Some(src), Some((line, col))) = (&self.source_line, self.line_col) {
+            let (src, col) = source_excerpt(src, col);
             let gutter = line.to_string().len();
             write!(
                 f,
@@ -136,7 +211,7 @@ impl fmt::Display for Diagnostic {
             )?;
         }
         if let Some(help) = &self.help {
-            write!(f, "\n  = help: {help}")?;
+            write!(f, "\n  = help: {}", cut_message(help))?;
         }
         Ok(())
     }
@@ -163,6 +238,11 @@ impl Locator {
             text: text.to_string(),
             root,
         }
+    }
+
+    /// The parsed document with the span of every key and value, when the text parses as TOML.
+    pub fn document(&self) -> Option<&DeTable<'static>> {
+        self.root.as_ref().map(Spanned::get_ref)
     }
 
     /// The file this locator indexes.
@@ -306,6 +386,40 @@ mod tests {
 
     const DOC: &str =
         "name = \"x\"\n\n[[detectors]]\nid = \"a\"\n\n[[detectors]]\nid = \"b\"\nbpp = 17\n";
+
+    #[test]
+    fn long_values_and_lines_are_cut_with_the_count_of_what_was_left_out() {
+        let long = "x".repeat(600_000);
+        assert_eq!(cut("short"), "short");
+        let c = cut(&long);
+        assert!(c.len() < 300 && c.ends_with("… (599800 more bytes)"), "{c}");
+        // Multi-byte characters are never split.
+        assert!(cut(&"é".repeat(300)).ends_with("… (200 more bytes)"));
+        let doc = format!("name = \"{long}\"\nbpp = 17\n");
+        let loc = Locator::new(Path::new("s.toml"), &doc);
+        let d = loc
+            .error(
+                KeyPath::root().key("name"),
+                format!("`{long}` is not a valid id"),
+            )
+            .with_help(format!("not \"{long}\""));
+        let s = d.to_string();
+        assert!(s.len() < 2_000, "{} bytes", s.len());
+        assert!(s.contains("more bytes)` is not a valid id"), "{s}");
+        assert!(s.contains("1 | name = \"xxx"), "{s}");
+        // A value far into a long line: the excerpt shows it, and the caret points at it.
+        let doc = format!("a = [{}]\nb = 1\n", "1, ".repeat(10_000) + "\"z\"");
+        let loc = Locator::new(Path::new("s.toml"), &doc);
+        let off = doc.find("\"z\"").unwrap();
+        let d = loc.error_at_span(Some(off..off + 3), "wrong type");
+        let s = d.to_string();
+        let lines: Vec<&str> = s.lines().collect();
+        let (src, caret) = (lines[2], lines[3]);
+        let at = src.find("\"z\"").expect("the value is in the excerpt");
+        let chars_before = src[..at].chars().count();
+        assert_eq!(caret.find('^'), Some(chars_before), "{s}");
+        assert!(src.contains("bytes before) …"), "{src}");
+    }
 
     #[test]
     fn key_paths_print_like_toml_access() {

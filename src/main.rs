@@ -16,20 +16,16 @@ use cli::{Cli, Command};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Validate { scenario }) => prepare(&scenario).map(|plan| {
-            eprintln!(
-                "{}: valid ({} runs, {} images per format)",
-                scenario.display(),
-                plan.runs.len(),
-                plan.image_count()
-            );
+        Some(Command::Validate {
+            scenario,
+            allow_large,
+        }) => check(&scenario, allow_large).map(|checked| {
+            eprintln!("{}: valid: {}", scenario.display(), checked.cost.summary());
         }),
-        Some(Command::Expand { scenario }) => prepare(&scenario).map(|plan| {
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&plan.runs).expect("runs serialise")
-            );
-        }),
+        Some(Command::Expand {
+            scenario,
+            allow_large,
+        }) => check(&scenario, allow_large).and_then(|checked| expand(&checked)),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
         Some(Command::Reconstruct {
             out,
@@ -68,7 +64,7 @@ fn main() -> ExitCode {
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario).and_then(|plan| {
+            prepare(&scenario, cli.run.allow_large).and_then(|plan| {
                 run(
                     &plan,
                     cli.run.out,
@@ -84,15 +80,51 @@ fn main() -> ExitCode {
     }
 }
 
-/// Loads and checks a scenario, printing warnings; errors are printed and give exit code 2.
-fn prepare(path: &std::path::Path) -> Result<Plan, u8> {
-    match simulate::prepare(path) {
-        Ok(plan) => {
-            plan.warnings.iter().for_each(|w| eprintln!("{w}"));
-            Ok(plan)
+/// Loads and checks a scenario (run by run, without keeping the runs), printing warnings;
+/// errors are printed and give exit code 2.
+fn check(path: &std::path::Path, allow_large: bool) -> Result<simulate::Checked, u8> {
+    match simulate::check(path, allow_large) {
+        Ok(checked) => {
+            checked.warnings.iter().for_each(|w| eprintln!("{w}"));
+            Ok(checked)
         }
         Err(errors) => Err(report_errors(&errors)),
     }
+}
+
+/// [`check`], then every run expanded for the simulation.
+fn prepare(path: &std::path::Path, allow_large: bool) -> Result<Plan, u8> {
+    check(path, allow_large).map(Plan::from)
+}
+
+/// Prints every run as one pretty JSON array, run by run (the same bytes as printing the whole
+/// array at once, without holding it): memory stays flat with the run count.
+fn expand(checked: &simulate::Checked) -> Result<(), u8> {
+    use std::io::Write;
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let mut write = || -> std::io::Result<()> {
+        let mut first = true;
+        out.write_all(b"[")?;
+        for run in rsasim::expand::runs(&checked.loaded.scenario, &checked.models) {
+            let text = serde_json::to_string_pretty(&run).map_err(std::io::Error::other)?;
+            out.write_all(if first { b"\n" } else { b",\n" })?;
+            first = false;
+            for (i, line) in text.lines().enumerate() {
+                if i > 0 {
+                    out.write_all(b"\n")?;
+                }
+                out.write_all(b"  ")?;
+                out.write_all(line.as_bytes())?;
+            }
+        }
+        out.write_all(if first { b"]\n" } else { b"\n]\n" })?;
+        out.flush()
+    };
+    write().map_err(|e| {
+        eprintln!("error: writing the runs to standard output failed: {e}");
+        1
+    })
 }
 
 fn report_errors(errors: &[Diagnostic]) -> u8 {

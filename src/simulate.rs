@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
+use crate::cost::{self, Cost};
 use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::expand::{self, Run};
 use crate::geometry::DetectorFrame;
@@ -26,6 +27,19 @@ use crate::trace::{self, MeshBvh, Object};
 use glam::DVec3;
 use sha2::{Digest, Sha256};
 
+/// A scenario checked run by run, with its cost: what `validate` and `expand` need. Its runs
+/// are not kept (see [`expand::runs`] to stream them).
+pub struct Checked {
+    /// The scenario as loaded.
+    pub loaded: LoadedScenario,
+    /// Every phantom in its local frame.
+    pub models: Vec<PhantomModel>,
+    /// What the simulation will write and use.
+    pub cost: Cost,
+    /// Warnings from every stage (errors stop preparation).
+    pub warnings: Vec<Diagnostic>,
+}
+
 /// A scenario checked and expanded, ready to run: nothing has been written yet.
 pub struct Plan {
     /// The scenario as loaded.
@@ -36,6 +50,8 @@ pub struct Plan {
     pub runs: Vec<Run>,
     /// Warnings from every stage (errors stop preparation).
     pub warnings: Vec<Diagnostic>,
+    /// What the simulation will write and use.
+    pub cost: Cost,
 }
 
 impl Plan {
@@ -46,29 +62,69 @@ impl Plan {
     }
 }
 
-/// Loads, validates, builds phantoms, expands and checks the geometry of every run.
-pub fn prepare(path: &Path) -> Result<Plan, Vec<Diagnostic>> {
+/// Loads, validates, builds phantoms, checks the cost against the caps (lifted by
+/// `allow_large`) and the geometry of every run, one run at a time.
+pub fn check(path: &Path, allow_large: bool) -> Result<Checked, Vec<Diagnostic>> {
     let loaded = scenario::load(path)?;
-    prepare_loaded(loaded)
+    check_loaded(loaded, allow_large)
 }
 
-/// [`prepare`] for a scenario already loaded (e.g. from text).
-pub fn prepare_loaded(loaded: LoadedScenario) -> Result<Plan, Vec<Diagnostic>> {
+/// [`check`] for a scenario already loaded (e.g. from text).
+pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked, Vec<Diagnostic>> {
     let models = phantom::build(&loaded)?;
-    let runs = expand::expand(&loaded.scenario, &models);
-    let findings = expand::check_geometry(&loaded, &models, &runs);
+    let cost = Cost::estimate(&loaded.scenario, &models, rayon::current_num_threads());
+    let errors = cost.check(
+        &loaded.scenario,
+        &loaded.locator,
+        allow_large,
+        cost::available_memory_bytes(),
+    );
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    let findings = expand::check_geometry(&loaded, &models);
     let (errors, warnings): (Vec<_>, Vec<_>) = findings.into_iter().partition(Diagnostic::is_error);
     if !errors.is_empty() {
         return Err(errors);
     }
     let mut all_warnings = loaded.warnings.clone();
     all_warnings.extend(warnings);
-    Ok(Plan {
+    Ok(Checked {
         loaded,
         models,
-        runs,
+        cost,
         warnings: all_warnings,
     })
+}
+
+/// Loads, validates, builds phantoms, checks the cost within the default caps and the geometry
+/// of every run, and expands the runs.
+pub fn prepare(path: &Path) -> Result<Plan, Vec<Diagnostic>> {
+    prepare_with(path, false)
+}
+
+/// [`prepare`] with the caps lifted when `allow_large` (the `--allow-large` flag).
+pub fn prepare_with(path: &Path, allow_large: bool) -> Result<Plan, Vec<Diagnostic>> {
+    check(path, allow_large).map(Plan::from)
+}
+
+/// [`prepare`] for a scenario already loaded (e.g. from text).
+pub fn prepare_loaded(loaded: LoadedScenario) -> Result<Plan, Vec<Diagnostic>> {
+    check_loaded(loaded, false).map(Plan::from)
+}
+
+impl From<Checked> for Plan {
+    /// Expands every run of a checked scenario.
+    fn from(c: Checked) -> Plan {
+        let runs = expand::expand(&c.loaded.scenario, &c.models);
+        Plan {
+            loaded: c.loaded,
+            models: c.models,
+            runs,
+            warnings: c.warnings,
+            cost: c.cost,
+        }
+    }
 }
 
 /// What a finished simulation wrote.

@@ -148,6 +148,69 @@ const CASES: &[(&str, &str, &str, &str, &str)] = &[
     ),
     ("bad syntax", "seed = 1", "seed = = 1", "", "seed = = 1"),
     (
+        "vector with an extra number",
+        "position_mm = [0.0, 0.0, 1000.0]",
+        "position_mm = [0.0, 0.0, 1000.0, 5.0]",
+        "expected exactly 3 numbers, got 4",
+        "position_mm = [0.0, 0.0, 1000.0, 5.0]",
+    ),
+    (
+        "pixel counts with a missing number",
+        "pixels = [64, 64]",
+        "pixels = [64]",
+        "expected exactly 2 numbers, got 1",
+        "pixels = [64]",
+    ),
+    (
+        "phantom outside every detector",
+        "position_mm = [10.0, 0.0, 0.0]",
+        "position_mm = [98.0, 0.0, 0.0]",
+        "phantom `beads` lies outside the field of every detector in run n0-r00",
+        "position_mm = [0.0, 0.0, 0.0]",
+    ),
+    (
+        "runs_per_level typo",
+        "runs_per_level = 1",
+        "runs_per_level = 1000000000",
+        "more than the cap of 100000",
+        "runs_per_level = 1000000000",
+    ),
+    (
+        "schema's largest detector as TIFF",
+        "pixels = [64, 64]",
+        "pixels = [65535, 65535]",
+        "more than the 4 GiB a classic TIFF file can hold",
+        "pixels = [65535, 65535]",
+    ),
+    (
+        "id longer than a file name",
+        "id = \"calibration\"",
+        "id = \"calibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibrationcalibration\"",
+        "is 121 bytes long, more than 100",
+        "id = \"calibrationcalibration",
+    ),
+    (
+        "Windows device name as id",
+        "id = \"det1\"",
+        "id = \"NUL\"",
+        "`NUL` is a device name Windows reserves",
+        "id = \"NUL\"",
+    ),
+    (
+        "id with a trailing dot",
+        "id = \"det1\"",
+        "id = \"det1.\"",
+        "starts or ends with `.`",
+        "id = \"det1.\"",
+    ),
+    (
+        "image names equal but for case",
+        "[[exposures]]\nid = \"calibration\"",
+        "[[exposures]]\nid = \"Calibration\"\nphantoms = [\"beads\"]\n\n[[exposures]]\nid = \"calibration\"",
+        "same name on case-insensitive file systems",
+        "id = \"calibration\"",
+    ),
+    (
         "missing mesh",
         "",
         MESH_PHANTOM,
@@ -228,6 +291,11 @@ fn each_bad_scenario_is_named_located_and_writes_nothing() {
             );
             assert!(stderr.contains("nothing was written"), "{case}: {stderr}");
             assert!(
+                stderr.len() < 4_000,
+                "{case}: {} bytes of errors",
+                stderr.len()
+            );
+            assert!(
                 !out.exists() && !dir.path().join("out.partial").exists(),
                 "{case}: something was written"
             );
@@ -262,9 +330,11 @@ fn a_phantom_partly_outside_the_field_is_a_warning_not_an_error() {
     let file = dir.path().join("edge.toml");
     std::fs::write(
         &file,
+        // The detector's half-width of 100 mm at magnification 1.3 is 76.92 mm at the bead:
+        // a 1 mm bead at x = 76.9 mm straddles the edge.
         BASE.replacen(
             "position_mm = [10.0, 0.0, 0.0]",
-            "position_mm = [98.0, 0.0, 0.0]",
+            "position_mm = [76.9, 0.0, 0.0]",
             1,
         ),
     )
@@ -305,4 +375,167 @@ fn an_existing_output_folder_is_refused_without_force() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out.join("keep.txt").exists() && out.join("manifest.json").exists());
+}
+
+/// Writes a closed sphere of radius 10 mm as `ball.stl` into `dir`.
+fn write_ball(dir: &Path) {
+    let m = rsasim::phantom::TriMesh::uv_sphere(10.0, 16, 16);
+    rsasim::phantom::mesh_io::write_stl(&m, std::fs::File::create(dir.join("ball.stl")).unwrap())
+        .unwrap();
+}
+
+#[test]
+fn a_bead_never_visible_warns_with_its_phantom_and_the_images_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    write_ball(dir.path());
+    // B9 projects outside the detector in every image; P1 sits inside the ball, so its ray
+    // crosses the mesh in every image; P2 sits outside the ball, in the open.
+    let text = BASE.replacen(
+        "position_mm = [10.0, 0.0, 0.0]\n",
+        "position_mm = [10.0, 0.0, 0.0]\n\n[[phantoms.beads]]\nid = \"B9\"\nposition_mm = [98.0, 0.0, 0.0]\n",
+        1,
+    ) + r#"
+[[phantoms]]
+id = "ball"
+position_mm = [-40.0, 0.0, 0.0]
+
+[phantoms.mesh]
+file = "ball.stl"
+
+[[phantoms.mesh.beads]]
+id = "P1"
+position_mm = [0.0, 0.0, 5.0]
+
+[[phantoms.mesh.beads]]
+id = "P2"
+position_mm = [20.0, 0.0, 0.0]
+
+[[exposures]]
+id = "model"
+phantoms = ["ball"]
+"#;
+    let file = dir.path().join("beads.toml");
+    std::fs::write(&file, &text).unwrap();
+    let o = rsasim(&["validate", file.to_str().unwrap()], &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("beads.toml:{}:", line_of(&text, "id = \"B9\"")))
+            && stderr.contains(
+                "bead `B9` of phantom `beads` is visible in none of the 2 images it was checked in (outside the detector in 2"
+            ),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("beads.toml:{}:", line_of(&text, "id = \"P1\"")))
+            && stderr.contains(
+                "bead `P1` of phantom `ball` is visible in none of the 2 images it was checked in (outside the detector in 0, in a mesh's shadow in 2)"
+            ),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("`P2`") && !stderr.contains("`B1`"),
+        "{stderr}"
+    );
+}
+
+/// A tiny deterministic generator (xorshift64*), so the mutation test needs no dependency.
+struct Mutator(u64);
+
+impl Mutator {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    fn pick<'a>(&mut self, items: &[&'a str]) -> &'a str {
+        items[(self.next() % items.len() as u64) as usize]
+    }
+
+    /// BASE with one line changed: a number replaced by an extreme one, an array grown, a
+    /// string replaced by one no file system accepts, or the line deleted or repeated.
+    fn mutate(&mut self, base: &str) -> String {
+        let mut lines: Vec<String> = base.lines().map(String::from).collect();
+        let i = (self.next() % lines.len() as u64) as usize;
+        let line = lines[i].clone();
+        let long = "x".repeat(300);
+        match self.next() % 5 {
+            0 => {
+                let number = self.pick(&[
+                    "-1",
+                    "0",
+                    "1e308",
+                    "nan",
+                    "inf",
+                    "-inf",
+                    "4294967296",
+                    "65535",
+                    "1000000000",
+                    "-0.0",
+                    "1e-300",
+                ]);
+                let mut out = String::new();
+                let mut replaced = false;
+                for token in line.split_inclusive([' ', '[', ',', ']']) {
+                    let digits = token.trim_end_matches([' ', '[', ',', ']']);
+                    if !replaced && !digits.is_empty() && digits.parse::<f64>().is_ok() {
+                        out.push_str(&token.replacen(digits, number, 1));
+                        replaced = true;
+                    } else {
+                        out.push_str(token);
+                    }
+                }
+                lines[i] = out;
+            }
+            1 => lines[i] = line.replacen(']', ", 5.0]", 1),
+            2 => {
+                let value = self.pick(&["", "CON", "a/b", "a:b", "é", "a.", "LONG"]);
+                let value = if value == "LONG" {
+                    long.as_str()
+                } else {
+                    value
+                };
+                if let (Some(a), Some(b)) = (line.find('"'), line.rfind('"')) {
+                    if a < b {
+                        lines[i] = format!("{}\"{value}\"{}", &line[..a], &line[b + 1..]);
+                    }
+                }
+            }
+            3 => {
+                lines.remove(i);
+            }
+            _ => lines.insert(i, line),
+        }
+        lines.join("\n") + "\n"
+    }
+}
+
+#[test]
+fn seeded_mutations_give_exit_0_or_a_located_error_and_never_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("m.toml");
+    let mut m = Mutator(0x5eed_0017);
+    let mut refused = 0;
+    for n in 0..120 {
+        let text = m.mutate(BASE);
+        std::fs::write(&file, &text).unwrap();
+        let o = rsasim(&["validate", file.to_str().unwrap()], &[]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let context = format!("mutation {n}:\n{text}\n--- stderr:\n{stderr}");
+        match o.status.code() {
+            Some(0) => assert!(stderr.contains(": valid: "), "{context}"),
+            Some(2) => {
+                refused += 1;
+                for line in stderr.lines().filter(|l| l.starts_with("error: ")) {
+                    assert!(line.contains("m.toml:"), "unlocated error in {context}");
+                }
+                assert!(stderr.len() < 8_000, "{} bytes: {context}", stderr.len());
+            }
+            code => panic!("exit {code:?} in {context}"),
+        }
+    }
+    // The mutations reach both outcomes.
+    assert!((20..100).contains(&refused), "{refused} of 120 refused");
 }

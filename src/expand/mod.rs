@@ -41,13 +41,19 @@ pub fn run_id(level_index: u32, run_index: u32) -> String {
 
 /// Every run of the protocol, level by level, run by run.
 pub fn expand(s: &Scenario, models: &[PhantomModel]) -> Vec<Run> {
-    let mut runs = Vec::new();
-    for (n, &level) in s.protocol.noise_levels.iter().enumerate() {
-        for r in 0..s.protocol.runs_per_level {
-            runs.push(expand_run(s, models, n as u32, level, r));
-        }
-    }
-    runs
+    runs(s, models).collect()
+}
+
+/// Every run of the protocol in the order of [`expand`], each built only when asked for: memory
+/// stays flat however many runs the protocol has.
+pub fn runs<'a>(s: &'a Scenario, models: &'a [PhantomModel]) -> impl Iterator<Item = Run> + 'a {
+    s.protocol
+        .noise_levels
+        .iter()
+        .enumerate()
+        .flat_map(move |(n, &level)| {
+            (0..s.protocol.runs_per_level).map(move |r| expand_run(s, models, n as u32, level, r))
+        })
 }
 
 /// One run: the draws of its geometry stream applied to the nominal set-up.

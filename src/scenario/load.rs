@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 use super::Scenario;
+use super::lengths::check_lengths;
 use super::validate::validate;
 use crate::diagnostic::{Diagnostic, Locator};
 
@@ -57,6 +58,10 @@ pub fn from_text(
     base_dir: &Path,
 ) -> Result<LoadedScenario, Vec<Diagnostic>> {
     let locator = Locator::new(path, text);
+    let length_errors = check_lengths(&locator);
+    if !length_errors.is_empty() {
+        return Err(length_errors);
+    }
     let scenario: Scenario = toml::from_str(text).map_err(|e| {
         let message = e.message().trim_end().to_string();
         let mut d = locator.error_at_span(e.span(), message.clone());

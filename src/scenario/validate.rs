@@ -4,10 +4,51 @@
 use std::collections::HashSet;
 
 use super::*;
-use crate::diagnostic::{Diagnostic, KeyPath, Locator};
+use crate::diagnostic::{Diagnostic, KeyPath, Locator, cut};
 
 /// Largest pixel count per axis (16-bit TIFF dimensions stay well within this).
 const MAX_PIXELS_PER_AXIS: u32 = 65_535;
+
+/// Longest id, in bytes. Ids name files and folders: `<exposure>-<detector>.tiff` is at most
+/// 2 × 100 + 6 = 206 bytes, and a scenario name leaves room for staging suffixes, within the
+/// 255 bytes per name component that Linux, macOS and Windows file systems allow.
+pub const MAX_ID_BYTES: usize = 100;
+
+/// Names Windows reserves for devices, with or without an extension (`CON`, `nul.csv`, `COM1`).
+const WINDOWS_RESERVED: &[&str] = &[
+    "CON", "PRN", "AUX", "NUL", "COM0", "COM1", "COM2", "COM3", "COM4", "COM5", "COM6", "COM7",
+    "COM8", "COM9", "LPT0", "LPT1", "LPT2", "LPT3", "LPT4", "LPT5", "LPT6", "LPT7", "LPT8", "LPT9",
+];
+
+/// Why `id` cannot name a file on every common file system, if it cannot.
+pub fn id_problem(id: &str) -> Option<String> {
+    if id.is_empty() {
+        return Some("it is empty".into());
+    }
+    if let Some(c) = id
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.')))
+    {
+        return Some(format!("it contains {c:?}"));
+    }
+    if id.starts_with('.') || id.ends_with('.') {
+        return Some("it starts or ends with `.`".into());
+    }
+    if id.len() > MAX_ID_BYTES {
+        return Some(format!(
+            "it is {} bytes long, more than {MAX_ID_BYTES}",
+            id.len()
+        ));
+    }
+    let stem = id.split('.').next().unwrap_or(id);
+    if WINDOWS_RESERVED
+        .iter()
+        .any(|r| r.eq_ignore_ascii_case(stem))
+    {
+        return Some(format!("`{stem}` is a device name Windows reserves"));
+    }
+    None
+}
 
 /// All findings on `s`, errors and warnings, in file order of the sections.
 pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
@@ -45,6 +86,10 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
         s.exposures.iter().map(|x| x.id.as_str()),
         "exposure",
     );
+    if !v.out.iter().any(Diagnostic::is_error) {
+        // Bad or duplicate ids are reported above; only names built from valid ids can collide.
+        v.file_names(s);
+    }
     v.nonempty(&root.key("sources"), s.sources.len(), "[[sources]]");
     v.nonempty(&root.key("detectors"), s.detectors.len(), "[[detectors]]");
     v.nonempty(&root.key("phantoms"), s.phantoms.len(), "[[phantoms]]");
@@ -80,7 +125,7 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
             if !phantom_ids.contains(&id.as_str()) {
                 v.err(
                     p.key("phantoms").index(k),
-                    format!("no phantom has the id `{id}`"),
+                    format!("no phantom has the id `{}`", cut(id)),
                     format!("valid phantom ids: {}", quoted(&phantom_ids)),
                 );
             }
@@ -132,17 +177,83 @@ impl Checker<'_> {
     }
 
     fn id(&mut self, path: &KeyPath, id: &str, what: &str) {
-        let ok = !id.is_empty()
-            && id
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
-            && !id.starts_with('.');
-        if !ok {
+        if let Some(why) = id_problem(id) {
             self.err(
                 path.clone(),
-                format!("`{id}` is not a valid id for {what}"),
-                "ids name files: use letters, digits, `-`, `_` and `.` (not first)",
+                format!("`{}` is not a valid id for {what}: {why}", cut(id)),
+                format!(
+                    "ids name files: use 1 to {MAX_ID_BYTES} letters, digits, `-`, `_` and `.` \
+                     (not first or last), and no Windows device name (CON, NUL, COM1, …)"
+                ),
             );
+        }
+    }
+
+    /// Two files of one folder whose names differ only in letter case collide on macOS and
+    /// Windows (and equal names collide everywhere): `<exposure>-<detector>.<ext>` in each run
+    /// folder, and the bead tables and mesh copies in `phantoms/`.
+    fn file_names(&mut self, s: &Scenario) {
+        let root = KeyPath::root();
+        let mut images: Vec<(String, KeyPath)> = Vec::new();
+        for (ei, e) in s.exposures.iter().enumerate() {
+            for d in &s.detectors {
+                images.push((
+                    format!("{}-{}", e.id, d.id),
+                    root.key("exposures").index(ei).key("id"),
+                ));
+            }
+        }
+        self.collisions(
+            images,
+            "a run folder",
+            "images are named `<exposure>-<detector>.<ext>`",
+        );
+        let mut phantom_files: Vec<(String, KeyPath)> = Vec::new();
+        for (pi, ph) in s.phantoms.iter().enumerate() {
+            let key = root.key("phantoms").index(pi).key("id");
+            match (&ph.mesh, &ph.beads, &ph.calibration_box) {
+                (Some(m), _, _) => {
+                    let ext = std::path::Path::new(&m.file)
+                        .extension()
+                        .and_then(|e| e.to_str())
+                        .unwrap_or("mesh")
+                        .to_ascii_lowercase();
+                    phantom_files.push((format!("{}.{ext}", ph.id), key.clone()));
+                    if !m.beads.is_empty() {
+                        phantom_files.push((format!("{}-beads.csv", ph.id), key));
+                    }
+                }
+                (None, Some(_), _) | (None, None, Some(_)) => {
+                    phantom_files.push((format!("{}.csv", ph.id), key));
+                }
+                (None, None, None) => {}
+            }
+        }
+        self.collisions(
+            phantom_files,
+            "`phantoms/`",
+            "bead tables are `<phantom>.csv` (`<phantom>-beads.csv` for a mesh's beads) and meshes `<phantom>.<ext>`",
+        );
+    }
+
+    fn collisions(&mut self, names: Vec<(String, KeyPath)>, folder: &str, rule: &str) {
+        let mut seen: std::collections::HashMap<String, &str> = std::collections::HashMap::new();
+        for (name, key) in &names {
+            match seen.get(&name.to_ascii_lowercase()) {
+                Some(first) => self.err(
+                    key.clone(),
+                    format!(
+                        "two files in {folder} would be named `{}` and `{}`, which are the same \
+                         name on case-insensitive file systems (macOS, Windows)",
+                        cut(first),
+                        cut(name)
+                    ),
+                    format!("{rule}; rename one of the ids"),
+                ),
+                None => {
+                    seen.insert(name.to_ascii_lowercase(), name);
+                }
+            }
         }
     }
 
@@ -153,7 +264,7 @@ impl Checker<'_> {
             if !seen.insert(id) {
                 self.err(
                     path.index(i).key("id"),
-                    format!("two {what}s have the id `{id}`"),
+                    format!("two {what}s have the id `{}`", cut(id)),
                     format!("give every {what} its own id"),
                 );
             }
@@ -385,6 +496,46 @@ impl Checker<'_> {
                     );
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_that_cannot_name_a_file_everywhere_are_refused() {
+        for bad in [
+            "",
+            "a/b",
+            "a\\b",
+            "a:b",
+            "a*b",
+            "a?b",
+            "a\"b",
+            "a<b",
+            "a|b",
+            "a\tb",
+            ".a",
+            "a.",
+            "a b",
+            "CON",
+            "con.x",
+            "Com1",
+            "lpt9.tiff",
+            "NUL",
+        ] {
+            assert!(id_problem(bad).is_some(), "{bad:?} accepted");
+        }
+        assert!(id_problem(&"a".repeat(MAX_ID_BYTES)).is_none());
+        assert!(
+            id_problem(&"a".repeat(MAX_ID_BYTES + 1))
+                .unwrap()
+                .contains("bytes long")
+        );
+        for good in ["knee", "B1", "det-1_a.b", "CONE", "console", "COM10"] {
+            assert_eq!(id_problem(good), None, "{good}");
         }
     }
 }
