@@ -38,6 +38,10 @@ pub struct RunArgs {
     /// Replace the output folder if it already exists (it is swapped in only once complete).
     #[arg(long)]
     pub force: bool,
+    /// A folder, besides the scenario file's own, that mesh files and the glTF buffers and
+    /// images they reference may be read from (repeatable). Nothing outside is read.
+    #[arg(long = "allow-dir", value_name = "DIR")]
+    pub allow_dir: Vec<PathBuf>,
 }
 
 /// The subcommands.
@@ -47,11 +51,19 @@ pub enum Command {
     Validate {
         /// The scenario file to check.
         scenario: PathBuf,
+        /// A folder, besides the scenario file's own, that mesh files and the glTF buffers and
+        /// images they reference may be read from (repeatable). Nothing outside is read.
+        #[arg(long = "allow-dir", value_name = "DIR")]
+        allow_dir: Vec<PathBuf>,
     },
     /// Print every concrete run (poses, seeds, noise level) as JSON, in the box frame.
     Expand {
         /// The scenario file to expand.
         scenario: PathBuf,
+        /// A folder, besides the scenario file's own, that mesh files and the glTF buffers and
+        /// images they reference may be read from (repeatable). Nothing outside is read.
+        #[arg(long = "allow-dir", value_name = "DIR")]
+        allow_dir: Vec<PathBuf>,
     },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.

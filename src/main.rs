@@ -16,7 +16,10 @@ use cli::{Cli, Command};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Validate { scenario }) => prepare(&scenario).map(|plan| {
+        Some(Command::Validate {
+            scenario,
+            allow_dir,
+        }) => prepare(&scenario, &allow_dir).map(|plan| {
             eprintln!(
                 "{}: valid ({} runs, {} images per format)",
                 scenario.display(),
@@ -24,7 +27,10 @@ fn main() -> ExitCode {
                 plan.image_count()
             );
         }),
-        Some(Command::Expand { scenario }) => prepare(&scenario).map(|plan| {
+        Some(Command::Expand {
+            scenario,
+            allow_dir,
+        }) => prepare(&scenario, &allow_dir).map(|plan| {
             println!(
                 "{}",
                 serde_json::to_string_pretty(&plan.runs).expect("runs serialise")
@@ -47,7 +53,8 @@ fn main() -> ExitCode {
         }) => evaluate(&out, measured, csv, confidence, &sided, &format, report),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario).and_then(|plan| run(&plan, cli.run.out, cli.run.force))
+            prepare(&scenario, &cli.run.allow_dir)
+                .and_then(|plan| run(&plan, cli.run.out, cli.run.force))
         }
     };
     match result {
@@ -57,8 +64,13 @@ fn main() -> ExitCode {
 }
 
 /// Loads and checks a scenario, printing warnings; errors are printed and give exit code 2.
-fn prepare(path: &std::path::Path) -> Result<Plan, u8> {
-    match simulate::prepare(path) {
+/// Files it pulls in are read from its folder and the `allow_dirs` only.
+fn prepare(path: &std::path::Path, allow_dirs: &[std::path::PathBuf]) -> Result<Plan, u8> {
+    let prepared = rsasim::scenario::load(path).and_then(|mut loaded| {
+        loaded.allowed_dirs = allow_dirs.to_vec();
+        simulate::prepare_loaded(loaded)
+    });
+    match prepared {
         Ok(plan) => {
             plan.warnings.iter().for_each(|w| eprintln!("{w}"));
             Ok(plan)

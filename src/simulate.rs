@@ -49,7 +49,7 @@ pub fn prepare(path: &Path) -> Result<Plan, Vec<Diagnostic>> {
 
 /// [`prepare`] for a scenario already loaded (e.g. from text).
 pub fn prepare_loaded(loaded: LoadedScenario) -> Result<Plan, Vec<Diagnostic>> {
-    let models = phantom::build(&loaded)?;
+    let (models, mesh_warnings) = phantom::build_with_warnings(&loaded)?;
     let runs = expand::expand(&loaded.scenario, &models);
     let findings = expand::check_geometry(&loaded, &models, &runs);
     let (errors, warnings): (Vec<_>, Vec<_>) = findings.into_iter().partition(Diagnostic::is_error);
@@ -57,6 +57,7 @@ pub fn prepare_loaded(loaded: LoadedScenario) -> Result<Plan, Vec<Diagnostic>> {
         return Err(errors);
     }
     let mut all_warnings = loaded.warnings.clone();
+    all_warnings.extend(mesh_warnings);
     all_warnings.extend(warnings);
     Ok(Plan {
         loaded,
@@ -183,15 +184,12 @@ fn write_phantoms(plan: &Plan, root: &Path) -> std::io::Result<Vec<ManifestFile>
             };
             out.push(manifest_entry(root, &dir.join(name), csv.as_bytes())?);
         }
-        if let (Some(file), Some(mesh)) = (&model.mesh_file, ph.mesh.as_mut()) {
-            let ext = file
-                .extension()
-                .and_then(|e| e.to_str())
-                .unwrap_or("mesh")
-                .to_ascii_lowercase();
-            let name = format!("{}.{ext}", model.id);
-            let bytes = std::fs::read(file)?;
-            out.push(manifest_entry(root, &dir.join(&name), &bytes)?);
+        // The mesh as read and checked, self-contained (phantom::mesh_io::MeshPackage).
+        if let (Some(file), Some(pkg), Some(mesh)) =
+            (&model.mesh_file, &model.mesh_package, ph.mesh.as_mut())
+        {
+            let name = format!("{}.{}", model.id, pkg.extension);
+            out.push(manifest_entry(root, &dir.join(&name), &pkg.bytes)?);
             mesh.unit_mm = Some(
                 mesh.unit_mm
                     .unwrap_or_else(|| phantom::mesh_io::default_unit_mm(file)),
