@@ -180,7 +180,7 @@ impl VertexCheck {
             let cause = if p.abs().max_element() * 1000.0 <= MAX_COORDINATE_MM {
                 format!(
                     "unit_mm = {} is too large for this file (1 for mm, 10 for cm, 25.4 for inches, 1000 for metres)",
-                    self.unit_mm
+                    number(self.unit_mm)
                 )
             } else {
                 "the vertex (or a node transform) is far beyond any phantom: the file is corrupt or in the wrong unit".into()
@@ -188,7 +188,7 @@ impl VertexCheck {
             return Err(format!(
                 "{} lies {far:.3e} mm from the origin after scaling by unit_mm = {}, beyond ±{MAX_COORDINATE_MM:e} mm: {cause}",
                 what(),
-                self.unit_mm
+                number(self.unit_mm)
             ));
         }
         Ok([q.x as f32, q.y as f32, q.z as f32])
@@ -222,8 +222,18 @@ fn unit_warning(mesh: &TriMesh, unit_mm: f64) -> Option<String> {
         None => "check the file's unit and set unit_mm (1 for mm, 10 for cm, 25.4 for inches, 1000 for metres)".into(),
     };
     Some(format!(
-        "the mesh's bounding box is {diagonal:.3e} mm across with unit_mm = {unit_mm}, implausible for an RSA phantom ({min} mm to {max} mm): {hint}"
+        "the mesh's bounding box is {diagonal:.3e} mm across with unit_mm = {}, implausible for an RSA phantom ({min} mm to {max} mm): {hint}",
+        number(unit_mm)
     ))
+}
+
+/// A number for a message: plain when moderate, in exponent form when huge or tiny.
+fn number(x: f64) -> String {
+    if x != 0.0 && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 /// Lower-case file extension without the dot, or "" when there is none.
