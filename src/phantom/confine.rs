@@ -45,10 +45,14 @@ impl Confinement {
         &self.roots
     }
 
-    /// Reads `path` if the rule allows it and it holds at most `limit` bytes. The error says
-    /// why the file is refused (outside the allowed folders, not a regular file, too large,
-    /// missing) without any of its contents.
-    pub fn read(&self, path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    /// Checks, without opening it, that the rule allows reading `path` and that it holds at
+    /// most `limit` bytes; the error is the one [`Confinement::read`] would give.
+    pub fn check(&self, path: &Path, limit: u64) -> Result<(), String> {
+        self.resolve(path, limit).map(|_| ())
+    }
+
+    /// The canonical path and metadata of `path` if the rule allows it.
+    fn resolve(&self, path: &Path, limit: u64) -> Result<(PathBuf, Metadata), String> {
         let shown = shown_path(path);
         let canonical = std::fs::canonicalize(non_empty(path)).map_err(|e| match e.kind() {
             std::io::ErrorKind::NotFound => format!("{shown} does not exist"),
@@ -71,9 +75,18 @@ impl Confinement {
                     .join(", ")
             ));
         }
-        let before = std::fs::symlink_metadata(&canonical)
+        let meta = std::fs::symlink_metadata(&canonical)
             .map_err(|e| format!("{shown} cannot be inspected: {}", io_reason(&e)))?;
-        check_regular(&shown, &before, limit)?;
+        check_regular(&shown, &meta, limit)?;
+        Ok((canonical, meta))
+    }
+
+    /// Reads `path` if the rule allows it and it holds at most `limit` bytes. The error says
+    /// why the file is refused (outside the allowed folders, not a regular file, too large,
+    /// missing) without any of its contents.
+    pub fn read(&self, path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+        let shown = shown_path(path);
+        let (canonical, before) = self.resolve(path, limit)?;
         let file = open_no_follow(&canonical)
             .map_err(|e| format!("{shown} cannot be opened: {}", io_reason(&e)))?;
         let after = file

@@ -99,6 +99,7 @@ pub fn load_mesh_in(
         ));
     }
     let shown = shown_path(path);
+    confine.check(path, MAX_INPUT_BYTES)?;
     let extension: &'static str = match extension(path).as_str() {
         "glb" => "glb",
         "gltf" => "gltf",
