@@ -319,3 +319,23 @@ fn a_gltf_in_metres_read_as_mm_warns_with_the_unit() {
     );
     assert!(stderr.contains("`phantoms[1].mesh.unit_mm`"), "{stderr}");
 }
+
+#[test]
+fn reconstruct_reads_meshes_only_inside_the_output_folder() {
+    let case = Case::new();
+    // A tampered output folder whose scenario.toml points its model outside the folder.
+    let out = case.scn.join("out");
+    std::fs::create_dir_all(out.join("runs")).unwrap();
+    std::fs::write(out.join("manifest.json"), "{}").unwrap();
+    let text = SCENARIO
+        .replace("MESHFILE", "../../secret.stl")
+        .replace("UNIT", "");
+    std::fs::write(out.join("scenario.toml"), text).unwrap();
+    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("outside the folders") && stderr.contains("`phantoms[1].mesh.file`"),
+        "{stderr}"
+    );
+}
