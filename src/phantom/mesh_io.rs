@@ -375,6 +375,11 @@ pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
 
     let json_bytes = json::serialize::to_vec(&root)
         .map_err(|e| format!("cannot serialise the glTF JSON: {e}"))?;
+    assemble_glb(json_bytes, bin)
+}
+
+/// A GLB file (version 2) of a JSON chunk and a binary chunk; both are padded to 4 bytes.
+fn assemble_glb(json_bytes: Vec<u8>, bin: Vec<u8>) -> Result<Vec<u8>, String> {
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header {
             magic: *b"glTF",

@@ -4,8 +4,6 @@
 //! indices and point at the same bytes, so accessors, meshes and nodes are untouched: the mesh
 //! read back is identical (not re-tessellated), and the output folder stands alone.
 
-use std::borrow::Cow;
-
 use serde_json::{Value, json};
 
 use crate::phantom::confine::MAX_INPUT_BYTES;
@@ -108,17 +106,7 @@ pub(super) fn repack_glb(
     }
     let json_bytes = serde_json::to_vec(&root)
         .map_err(|_| "the repacked glTF JSON cannot be written".to_string())?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            length: 0,
-        },
-        json: Cow::Owned(json_bytes),
-        bin: Some(Cow::Owned(bin)),
-    };
-    glb.to_vec()
-        .map_err(|e| format!("cannot assemble the repacked GLB: {e}"))
+    super::assemble_glb(json_bytes, bin)
 }
 
 fn pad4(bin: &mut Vec<u8>) {
