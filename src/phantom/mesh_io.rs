@@ -177,7 +177,7 @@ impl VertexCheck {
         }
         let q = p * self.unit_mm;
         let far = q.abs().max_element();
-        if !(far <= MAX_COORDINATE_MM) {
+        if far > MAX_COORDINATE_MM {
             let cause = if p.abs().max_element() * 1000.0 <= MAX_COORDINATE_MM {
                 format!(
                     "unit_mm = {} is too large for this file (1 for mm, 10 for cm, 25.4 for inches, 1000 for metres)",
