@@ -44,10 +44,31 @@ pub struct RunArgs {
     /// ranges). DIR must lie outside the --out folder. Score with `rsasim evaluate OUT --truth DIR`.
     #[arg(long, value_name = "DIR")]
     pub truth_dir: Option<PathBuf>,
+    /// What the scenario may read and use beyond the defaults.
+    #[command(flatten)]
+    pub allow: AllowArgs,
+}
+
+/// Flags that widen what a scenario may read and use (run, validate, expand).
+#[derive(Debug, Args)]
+pub struct AllowArgs {
+    /// A folder, besides the scenario file's own, that mesh files and the glTF buffers and
+    /// images they reference may be read from (repeatable). Nothing outside is read.
+    #[arg(long = "allow-dir", value_name = "DIR")]
+    pub allow_dir: Vec<PathBuf>,
     /// Lift the caps on runs, pixels per image, bytes on disk and memory (see the README,
     /// "Limits"); the 4 GiB limit of a classic TIFF file still applies.
     #[arg(long)]
     pub allow_large: bool,
+}
+
+impl From<AllowArgs> for rsasim::simulate::Allowances {
+    fn from(a: AllowArgs) -> Self {
+        rsasim::simulate::Allowances {
+            dirs: a.allow_dir,
+            large: a.allow_large,
+        }
+    }
 }
 
 /// The subcommands.
@@ -57,17 +78,17 @@ pub enum Command {
     Validate {
         /// The scenario file to check.
         scenario: PathBuf,
-        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
-        #[arg(long)]
-        allow_large: bool,
+        /// What the scenario may read and use beyond the defaults.
+        #[command(flatten)]
+        allow: AllowArgs,
     },
     /// Print every concrete run (poses, seeds, noise level) as JSON, in the box frame.
     Expand {
         /// The scenario file to expand.
         scenario: PathBuf,
-        /// Lift the caps on runs, pixels per image, bytes on disk and memory.
-        #[arg(long)]
-        allow_large: bool,
+        /// What the scenario may read and use beyond the defaults.
+        #[command(flatten)]
+        allow: AllowArgs,
     },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.

@@ -16,16 +16,14 @@ use cli::{Cli, Command};
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Validate {
-            scenario,
-            allow_large,
-        }) => check(&scenario, allow_large).map(|checked| {
-            eprintln!("{}: valid: {}", scenario.display(), checked.cost.summary());
-        }),
-        Some(Command::Expand {
-            scenario,
-            allow_large,
-        }) => check(&scenario, allow_large).and_then(|checked| expand(&checked)),
+        Some(Command::Validate { scenario, allow }) => {
+            check(&scenario, &allow.into()).map(|checked| {
+                eprintln!("{}: valid: {}", scenario.display(), checked.cost.summary());
+            })
+        }
+        Some(Command::Expand { scenario, allow }) => {
+            check(&scenario, &allow.into()).and_then(|checked| expand(&checked))
+        }
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
         Some(Command::Reconstruct {
             out,
@@ -64,7 +62,7 @@ fn main() -> ExitCode {
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario, cli.run.allow_large).and_then(|plan| {
+            prepare(&scenario, &cli.run.allow.into()).and_then(|plan| {
                 run(
                     &plan,
                     cli.run.out,
@@ -82,8 +80,8 @@ fn main() -> ExitCode {
 
 /// Loads and checks a scenario (run by run, without keeping the runs), printing warnings;
 /// errors are printed and give exit code 2.
-fn check(path: &std::path::Path, allow_large: bool) -> Result<simulate::Checked, u8> {
-    match simulate::check(path, allow_large) {
+fn check(path: &std::path::Path, allow: &simulate::Allowances) -> Result<simulate::Checked, u8> {
+    match simulate::check(path, allow) {
         Ok(checked) => {
             checked.warnings.iter().for_each(|w| eprintln!("{w}"));
             Ok(checked)
@@ -93,8 +91,8 @@ fn check(path: &std::path::Path, allow_large: bool) -> Result<simulate::Checked,
 }
 
 /// [`check`], then every run expanded for the simulation.
-fn prepare(path: &std::path::Path, allow_large: bool) -> Result<Plan, u8> {
-    check(path, allow_large).map(Plan::from)
+fn prepare(path: &std::path::Path, allow: &simulate::Allowances) -> Result<Plan, u8> {
+    check(path, allow).map(Plan::from)
 }
 
 /// Prints every run as one pretty JSON array, run by run (the same bytes as printing the whole

@@ -62,16 +62,27 @@ impl Plan {
     }
 }
 
-/// Loads, validates, builds phantoms, checks the cost against the caps (lifted by
-/// `allow_large`) and the geometry of every run, one run at a time.
-pub fn check(path: &Path, allow_large: bool) -> Result<Checked, Vec<Diagnostic>> {
-    let loaded = scenario::load(path)?;
-    check_loaded(loaded, allow_large)
+/// What the command line grants a scenario beyond its defaults.
+#[derive(Debug, Clone, Default)]
+pub struct Allowances {
+    /// Folders besides the scenario file's own that its meshes (and their buffers) may be read
+    /// from (`--allow-dir`).
+    pub dirs: Vec<PathBuf>,
+    /// Lift the caps on runs, pixels, bytes and memory (`--allow-large`).
+    pub large: bool,
+}
+
+/// Loads, validates, builds phantoms, checks the cost against the caps and the geometry of every
+/// run, one run at a time; `allow` widens what may be read and lifts the caps.
+pub fn check(path: &Path, allow: &Allowances) -> Result<Checked, Vec<Diagnostic>> {
+    let mut loaded = scenario::load(path)?;
+    loaded.allowed_dirs = allow.dirs.clone();
+    check_loaded(loaded, allow.large)
 }
 
 /// [`check`] for a scenario already loaded (e.g. from text).
 pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked, Vec<Diagnostic>> {
-    let models = phantom::build(&loaded)?;
+    let (models, mesh_warnings) = phantom::build_with_warnings(&loaded)?;
     let cost = Cost::estimate(&loaded.scenario, &models, rayon::current_num_threads());
     let errors = cost.check(
         &loaded.scenario,
@@ -88,6 +99,7 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
         return Err(errors);
     }
     let mut all_warnings = loaded.warnings.clone();
+    all_warnings.extend(mesh_warnings);
     all_warnings.extend(warnings);
     Ok(Checked {
         loaded,
@@ -100,12 +112,12 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
 /// Loads, validates, builds phantoms, checks the cost within the default caps and the geometry
 /// of every run, and expands the runs.
 pub fn prepare(path: &Path) -> Result<Plan, Vec<Diagnostic>> {
-    prepare_with(path, false)
+    prepare_with(path, &Allowances::default())
 }
 
-/// [`prepare`] with the caps lifted when `allow_large` (the `--allow-large` flag).
-pub fn prepare_with(path: &Path, allow_large: bool) -> Result<Plan, Vec<Diagnostic>> {
-    check(path, allow_large).map(Plan::from)
+/// [`prepare`] with what the command line allows (`--allow-dir`, `--allow-large`).
+pub fn prepare_with(path: &Path, allow: &Allowances) -> Result<Plan, Vec<Diagnostic>> {
+    check(path, allow).map(Plan::from)
 }
 
 /// [`prepare`] for a scenario already loaded (e.g. from text).
@@ -351,15 +363,12 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
             };
             out.push(manifest_entry(root, &dir.join(name), csv.as_bytes())?);
         }
-        if let (Some(file), Some(mesh)) = (&model.mesh_file, ph.mesh.as_mut()) {
-            let ext = file
-                .extension()
-                .and_then(|e| e.to_str())
-                .unwrap_or("mesh")
-                .to_ascii_lowercase();
-            let name = format!("{}.{ext}", model.id);
-            let bytes = std::fs::read(file)?;
-            out.push(manifest_entry(root, &dir.join(&name), &bytes)?);
+        // The mesh as read and checked, self-contained (phantom::mesh_io::MeshPackage).
+        if let (Some(file), Some(pkg), Some(mesh)) =
+            (&model.mesh_file, &model.mesh_package, ph.mesh.as_mut())
+        {
+            let name = format!("{}.{}", model.id, pkg.extension);
+            out.push(manifest_entry(root, &dir.join(&name), &pkg.bytes)?);
             mesh.unit_mm = Some(
                 mesh.unit_mm
                     .unwrap_or_else(|| phantom::mesh_io::default_unit_mm(file)),

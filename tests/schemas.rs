@@ -49,7 +49,15 @@ fn schema_and_expand_commands_print_json() {
     let o = rsasim(&["schema", "truth"], &[]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["properties"]["images"].is_object());
-    let o = rsasim(&["expand", "scenarios/golden/small_biplanar.toml"], &[]);
+    let o = rsasim(
+        &[
+            "expand",
+            "scenarios/golden/small_biplanar.toml",
+            "--allow-dir",
+            "scenarios/models",
+        ],
+        &[],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let runs: Vec<rsasim::expand::Run> = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(runs.len(), 4);

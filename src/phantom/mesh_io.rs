@@ -1,24 +1,44 @@
 //! Reading and writing triangle meshes: glTF 2.0 (`.glb`, `.gltf`) and STL (`.stl`).
 //!
-//! Everything in the program is in millimetres; files are not. [`load_mesh`] takes the size of one
-//! file unit in mm (`unit_mm`), and [`default_unit_mm`] gives the customary one: the glTF
+//! Everything in the program is in millimetres; files are not. [`load_mesh_in`] takes the size of
+//! one file unit in mm (`unit_mm`), and [`default_unit_mm`] gives the customary one: the glTF
 //! specification fixes the metre (1000 mm), and STL files from CAD tools are in mm by custom.
 //! [`write_glb`] writes metres, as glTF requires, and [`write_stl`] writes mm.
+//!
+//! Input files are hostile until checked: every file (the mesh, its buffers and images) is read
+//! through the [`Confinement`] rule with a size limit, every glTF accessor is checked before it
+//! is read, and every vertex must be finite and within ±[`MAX_COORDINATE_MM`] after node
+//! transforms and unit scaling. No input reaches a panic; errors name the accessor, node, facet
+//! or vertex at fault and never quote the file's contents.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+use std::sync::Arc;
 
-use base64::Engine as _;
-use glam::{DMat4, DVec3};
+use glam::DVec3;
 use gltf::json;
 use json::validation::Checked::Valid;
 
 use super::TriMesh;
+use super::confine::{Confinement, MAX_INPUT_BYTES, shown_path};
 
-/// Deepest node hierarchy [`load_mesh`] follows; deeper (or cyclic) hierarchies are refused.
-const MAX_NODE_DEPTH: usize = 256;
+mod gltf_read;
+mod repack;
+mod stl_read;
+
+pub use gltf_read::MAX_NODE_DEPTH;
+
+/// Most triangles one mesh may have (after glTF instancing); more are refused.
+pub const MAX_TRIANGLES: usize = 10_000_000;
+
+/// Largest |coordinate| of a vertex after unit scaling, mm: a phantom is far smaller, so
+/// anything beyond is a wrong `unit_mm` or a corrupt file.
+pub const MAX_COORDINATE_MM: f64 = 1e6;
+
+/// Plausible bounding-box diagonal of an RSA phantom, mm: outside it a warning suggests a unit.
+pub const PLAUSIBLE_DIAGONAL_MM: (f64, f64) = (1.0, 2000.0);
 
 /// Millimetres per file unit that a file of this kind customarily uses: 1000 for glTF (`.glb`,
 /// `.gltf`, whose specification fixes the metre) and 1 for everything else (STL files are in mm
@@ -30,24 +50,60 @@ pub fn default_unit_mm(path: &Path) -> f64 {
     }
 }
 
-/// Loads the triangles of a `.glb`, `.gltf` or `.stl` file as one mesh in mm: file coordinates are
-/// multiplied by `unit_mm` (mm per file unit, see [`default_unit_mm`]), and vertices with identical
-/// positions are welded so that the mesh can be checked with [`TriMesh::check_closed`].
+/// What goes into an output's `phantoms/` for a mesh: bytes that stand alone.
+#[derive(Debug, Clone)]
+pub struct MeshPackage {
+    /// File extension of the packaged file: `glb`, `gltf` or `stl`.
+    pub extension: &'static str,
+    /// The file's bytes: a byte copy of a `.glb`, self-contained `.gltf` or `.stl`, or the
+    /// exact repack of a glTF that references files into one `.glb`.
+    pub bytes: Arc<Vec<u8>>,
+}
+
+/// A mesh file read and checked.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    /// The triangles in mm, welded (not yet checked for closedness).
+    pub mesh: TriMesh,
+    /// The self-contained file for an output's `phantoms/`.
+    pub package: MeshPackage,
+    /// Doubts that do not stop the run (an implausible size for the unit).
+    pub warnings: Vec<String>,
+}
+
+/// Loads the triangles of a `.glb`, `.gltf` or `.stl` file as one mesh in mm, reading only the
+/// file's own folder (see [`load_mesh_in`]); used by tools and tests on trusted files.
+pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let confine = Confinement::new(dir, &[]).map_err(|e| format!("{}: {e}", shown_path(path)))?;
+    load_mesh_in(path, unit_mm, &confine).map(|m| m.mesh)
+}
+
+/// Loads the triangles of a `.glb`, `.gltf` or `.stl` file as one mesh in mm: file coordinates
+/// are multiplied by `unit_mm` (mm per file unit, see [`default_unit_mm`]), and vertices with
+/// identical positions are welded so that the mesh can be checked with
+/// [`TriMesh::check_closed`]. The file and everything it references are read under `confine`.
 ///
 /// For glTF, the default scene (or, when the file names none, the root nodes of every scene) is
-/// walked recursively with each node's transform applied; every primitive must be a triangle list.
-/// Buffers may live in the GLB binary chunk, in a file beside the `.gltf` or in a base64 `data:`
-/// URI. The error says what is wrong with the file and what would be accepted.
-pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
+/// walked with each node's transform applied; every primitive must be a triangle list. Buffers
+/// may live in the GLB binary chunk, in a file beside the `.gltf` or in a base64 `data:` URI.
+/// The error says what is wrong with the file and what would be accepted.
+pub fn load_mesh_in(
+    path: &Path,
+    unit_mm: f64,
+    confine: &Confinement,
+) -> Result<LoadedMesh, String> {
     if !(unit_mm.is_finite() && unit_mm > 0.0) {
         return Err(format!(
-            "unit_mm is {unit_mm}: it must be a positive number of millimetres per file unit"
+            "unit_mm is {unit_mm}: it must be a positive, finite number of millimetres per file unit"
         ));
     }
-    let shown = path.display();
-    let mut mesh = match extension(path).as_str() {
-        "glb" | "gltf" => load_gltf(path).map_err(|e| format!("{shown}: {e}"))?,
-        "stl" => load_stl(path).map_err(|e| format!("{shown}: {e}"))?,
+    let shown = shown_path(path);
+    confine.check(path, MAX_INPUT_BYTES)?;
+    let extension: &'static str = match extension(path).as_str() {
+        "glb" => "glb",
+        "gltf" => "gltf",
+        "stl" => "stl",
         "" => {
             return Err(format!(
                 "{shown} has no file extension: use .glb, .gltf or .stl"
@@ -55,8 +111,39 @@ pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
         }
         other => {
             return Err(format!(
-                "{shown}: unsupported extension `.{other}`: use .glb, .gltf or .stl"
+                "{shown}: unsupported extension `.{}`: use .glb, .gltf or .stl",
+                super::confine::shorten(other)
             ));
+        }
+    };
+    let bytes = confine.read(path, MAX_INPUT_BYTES)?;
+    let check = VertexCheck { unit_mm };
+    let (mut mesh, package) = match extension {
+        "stl" => {
+            let mesh = stl_read::read_stl(&bytes, &check).map_err(|e| format!("{shown}: {e}"))?;
+            (
+                mesh,
+                MeshPackage {
+                    extension,
+                    bytes: Arc::new(bytes),
+                },
+            )
+        }
+        _ => {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            let read = gltf_read::read_gltf(&bytes, dir, confine, &check)
+                .map_err(|e| format!("{shown}: {e}"))?;
+            let package = match read.repacked_glb {
+                Some(glb) => MeshPackage {
+                    extension: "glb",
+                    bytes: Arc::new(glb),
+                },
+                None => MeshPackage {
+                    extension,
+                    bytes: Arc::new(bytes),
+                },
+            };
+            (read.mesh, package)
         }
     };
     if mesh.triangles.is_empty() {
@@ -64,11 +151,90 @@ pub fn load_mesh(path: &Path, unit_mm: f64) -> Result<TriMesh, String> {
             "{shown} contains no triangles: a phantom mesh needs a closed triangle surface"
         ));
     }
-    for v in &mut mesh.vertices {
-        *v = v.map(|c| (f64::from(c) * unit_mm) as f32);
-    }
     mesh.weld();
-    Ok(mesh)
+    let warnings = unit_warning(&mesh, unit_mm).into_iter().collect();
+    Ok(LoadedMesh {
+        mesh,
+        package,
+        warnings,
+    })
+}
+
+/// Scales file coordinates to mm and refuses what no phantom can be.
+pub(crate) struct VertexCheck {
+    unit_mm: f64,
+}
+
+impl VertexCheck {
+    /// `p` (file units, after node transforms) in mm as f32; the error names the vertex (`what`)
+    /// and the likely cause: a corrupt value or a wrong `unit_mm`.
+    fn to_mm(&self, p: DVec3, what: &dyn Fn() -> String) -> Result<[f32; 3], String> {
+        if !p.is_finite() {
+            return Err(format!(
+                "{} is not a finite number (NaN or infinite): the file is corrupt",
+                what()
+            ));
+        }
+        let q = p * self.unit_mm;
+        let far = q.abs().max_element();
+        if far > MAX_COORDINATE_MM {
+            let cause = if p.abs().max_element() * 1000.0 <= MAX_COORDINATE_MM {
+                format!(
+                    "unit_mm = {} is too large for this file (1 for mm, 10 for cm, 25.4 for inches, 1000 for metres)",
+                    number(self.unit_mm)
+                )
+            } else {
+                "the vertex (or a node transform) is far beyond any phantom: the file is corrupt or in the wrong unit".into()
+            };
+            return Err(format!(
+                "{} lies {far:.3e} mm from the origin after scaling by unit_mm = {}, beyond ±{MAX_COORDINATE_MM:e} mm: {cause}",
+                what(),
+                number(self.unit_mm)
+            ));
+        }
+        Ok([q.x as f32, q.y as f32, q.z as f32])
+    }
+}
+
+/// A warning when the mesh's bounding-box diagonal is implausible for an RSA phantom, with the
+/// `unit_mm` that would give it a plausible size.
+fn unit_warning(mesh: &TriMesh, unit_mm: f64) -> Option<String> {
+    let (lo, hi) = mesh.bounds_mm();
+    let diagonal = (hi - lo).length();
+    let (min, max) = PLAUSIBLE_DIAGONAL_MM;
+    if (min..=max).contains(&diagonal) {
+        return None;
+    }
+    let file_units = diagonal / unit_mm;
+    let suggestion = [
+        (1.0, "mm"),
+        (10.0, "cm"),
+        (25.4, "inches"),
+        (1000.0, "metres"),
+    ]
+    .into_iter()
+    .filter(|(u, _)| (min..=max).contains(&(file_units * u)))
+    .min_by(|a, b| {
+        let score = |u: f64| (file_units * u / 100.0).ln().abs();
+        score(a.0).total_cmp(&score(b.0))
+    });
+    let hint = match suggestion {
+        Some((u, name)) => format!("if the file is in {name}, set unit_mm = {u}"),
+        None => "check the file's unit and set unit_mm (1 for mm, 10 for cm, 25.4 for inches, 1000 for metres)".into(),
+    };
+    Some(format!(
+        "the mesh's bounding box is {diagonal:.3e} mm across with unit_mm = {}, implausible for an RSA phantom ({min} mm to {max} mm): {hint}",
+        number(unit_mm)
+    ))
+}
+
+/// A number for a message: plain when moderate, in exponent form when huge or tiny.
+fn number(x: f64) -> String {
+    if x != 0.0 && !(1e-3..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 /// Lower-case file extension without the dot, or "" when there is none.
@@ -76,250 +242,6 @@ fn extension(path: &Path) -> String {
     path.extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default()
-}
-
-fn read_file(path: &Path) -> Result<Vec<u8>, String> {
-    std::fs::read(path).map_err(|e| format!("cannot read the file: {e}"))
-}
-
-fn load_stl(path: &Path) -> Result<TriMesh, String> {
-    let mut file = std::fs::File::open(path).map_err(|e| format!("cannot open the file: {e}"))?;
-    let stl = stl_io::read_stl(&mut file)
-        .map_err(|e| format!("not a readable STL file (binary or ASCII): {e}"))?;
-    let vertices: Vec<[f32; 3]> = stl.vertices.iter().map(|v| [v[0], v[1], v[2]]).collect();
-    let n = vertices.len();
-    let mut triangles = Vec::with_capacity(stl.faces.len());
-    for (f, face) in stl.faces.iter().enumerate() {
-        if face.vertices.iter().any(|&i| i >= n) {
-            return Err(format!(
-                "facet {f} refers to a vertex beyond the {n} vertices"
-            ));
-        }
-        triangles.push(face.vertices.map(|i| i as u32));
-    }
-    Ok(TriMesh {
-        vertices,
-        triangles,
-    })
-}
-
-fn load_gltf(path: &Path) -> Result<TriMesh, String> {
-    let bytes = read_file(path)?;
-    let gltf =
-        gltf::Gltf::from_slice(&bytes).map_err(|e| format!("not a valid glTF 2.0 file: {e}"))?;
-    let names = MeshNames::from_bytes(&bytes);
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let buffers = resolve_buffers(&gltf, &base_dir)?;
-
-    let roots: Vec<gltf::Node> = match gltf.document.default_scene() {
-        Some(scene) => scene.nodes().collect(),
-        None => gltf.document.scenes().flat_map(|s| s.nodes()).collect(),
-    };
-    let mut mesh = TriMesh {
-        vertices: Vec::new(),
-        triangles: Vec::new(),
-    };
-    for node in roots {
-        add_node(&node, DMat4::IDENTITY, 0, &buffers, &names, &mut mesh)?;
-    }
-    Ok(mesh)
-}
-
-/// Mesh names for error messages: the `gltf` crate is built without its `names` feature, so they
-/// are read from the JSON directly (best effort; a missing name falls back to the index).
-struct MeshNames(Vec<Option<String>>);
-
-impl MeshNames {
-    fn from_bytes(bytes: &[u8]) -> Self {
-        let json_bytes: Option<Cow<[u8]>> = if bytes.starts_with(b"glTF") {
-            gltf::binary::Glb::from_slice(bytes).ok().map(|g| g.json)
-        } else {
-            Some(Cow::Borrowed(bytes))
-        };
-        let value: Option<serde_json::Value> =
-            json_bytes.and_then(|j| serde_json::from_slice(&j).ok());
-        let names = value
-            .as_ref()
-            .and_then(|v| v.get("meshes"))
-            .and_then(|m| m.as_array())
-            .map(|meshes| {
-                meshes
-                    .iter()
-                    .map(|m| m.get("name").and_then(|n| n.as_str()).map(str::to_owned))
-                    .collect()
-            })
-            .unwrap_or_default();
-        MeshNames(names)
-    }
-
-    fn describe(&self, index: usize) -> String {
-        match self.0.get(index) {
-            Some(Some(name)) => format!("mesh `{name}`"),
-            _ => format!("mesh {index}"),
-        }
-    }
-}
-
-/// The bytes of every buffer, in buffer order, each checked to hold its declared length.
-fn resolve_buffers(gltf: &gltf::Gltf, base_dir: &Path) -> Result<Vec<Vec<u8>>, String> {
-    let mut out = Vec::new();
-    for buffer in gltf.document.buffers() {
-        let i = buffer.index();
-        let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
-                format!("buffer {i} refers to the binary chunk, but there is none: store it in a .glb or give the buffer a `uri`")
-            })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, base_dir).map_err(|e| format!("buffer {i}: {e}"))?,
-        };
-        if data.len() < buffer.length() {
-            return Err(format!(
-                "buffer {i} declares {} bytes but holds only {}: the file or its .bin is truncated",
-                buffer.length(),
-                data.len()
-            ));
-        }
-        out.push(data);
-    }
-    Ok(out)
-}
-
-/// Reads a buffer URI: a base64 `data:` URI or a path relative to the `.gltf` file's folder.
-fn read_uri(uri: &str, base_dir: &Path) -> Result<Vec<u8>, String> {
-    if let Some(rest) = uri.strip_prefix("data:") {
-        let (header, payload) = rest
-            .split_once(',')
-            .ok_or_else(|| "the data URI has no `,` before its payload".to_string())?;
-        if !header.ends_with(";base64") {
-            return Err(
-                "the data URI is not base64-encoded: use `data:application/octet-stream;base64,…`"
-                    .into(),
-            );
-        }
-        return base64::engine::general_purpose::STANDARD
-            .decode(payload)
-            .map_err(|e| format!("the data URI's base64 payload is invalid: {e}"));
-    }
-    if uri.contains("://") {
-        return Err(format!(
-            "buffer URI `{uri}` is remote: only relative file paths and data: URIs are read"
-        ));
-    }
-    let file: PathBuf = base_dir.join(percent_decode(uri));
-    std::fs::read(&file).map_err(|e| {
-        format!(
-            "cannot read {} (the buffer URI, relative to the .gltf): {e}",
-            file.display()
-        )
-    })
-}
-
-/// Decodes `%XX` escapes (URIs in glTF are percent-encoded); malformed escapes are kept verbatim.
-fn percent_decode(s: &str) -> String {
-    let bytes = s.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        let hex = |b: u8| (b as char).to_digit(16);
-        if bytes[i] == b'%'
-            && i + 2 < bytes.len()
-            && let (Some(h), Some(l)) = (hex(bytes[i + 1]), hex(bytes[i + 2]))
-        {
-            out.push((h * 16 + l) as u8);
-            i += 3;
-            continue;
-        }
-        out.push(bytes[i]);
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
-/// Appends a node's mesh (transformed by `parent · node`) and recurses into its children.
-fn add_node(
-    node: &gltf::Node,
-    parent: DMat4,
-    depth: usize,
-    buffers: &[Vec<u8>],
-    names: &MeshNames,
-    out: &mut TriMesh,
-) -> Result<(), String> {
-    if depth > MAX_NODE_DEPTH {
-        return Err(format!(
-            "node {} is nested more than {MAX_NODE_DEPTH} levels deep: the node hierarchy must be a finite tree",
-            node.index()
-        ));
-    }
-    let local = node.transform().matrix().map(|col| col.map(f64::from));
-    let world = parent * DMat4::from_cols_array_2d(&local);
-    if let Some(mesh) = node.mesh() {
-        let flip = world.determinant() < 0.0;
-        for prim in mesh.primitives() {
-            let what = || {
-                format!(
-                    "primitive {} of {}",
-                    prim.index(),
-                    names.describe(mesh.index())
-                )
-            };
-            if prim.mode() != gltf::mesh::Mode::Triangles {
-                return Err(format!(
-                    "{} uses mode {:?}; only triangle meshes can be traced",
-                    what(),
-                    prim.mode()
-                ));
-            }
-            let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-            let positions: Vec<[f32; 3]> = reader
-                .read_positions()
-                .ok_or_else(|| {
-                    format!(
-                        "{} has no readable POSITION attribute: it needs float VEC3 positions",
-                        what()
-                    )
-                })?
-                .collect();
-            let n = positions.len() as u32;
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None if prim.indices().is_some() => {
-                    return Err(format!(
-                        "{} has indices that cannot be read from its buffer",
-                        what()
-                    ));
-                }
-                None => (0..n).collect(),
-            };
-            if !indices.len().is_multiple_of(3) {
-                return Err(format!(
-                    "{} has {} indices, not a multiple of 3: a triangle list needs three per triangle",
-                    what(),
-                    indices.len()
-                ));
-            }
-            if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
-                return Err(format!(
-                    "{} uses vertex index {bad} but has only {n} positions",
-                    what()
-                ));
-            }
-            let base = out.vertices.len() as u32;
-            out.vertices.extend(positions.iter().map(|p| {
-                let q = world.transform_point3(DVec3::new(p[0].into(), p[1].into(), p[2].into()));
-                [q.x as f32, q.y as f32, q.z as f32]
-            }));
-            out.triangles.extend(indices.chunks_exact(3).map(|t| {
-                if flip {
-                    [base + t[0], base + t[2], base + t[1]]
-                } else {
-                    [base + t[0], base + t[1], base + t[2]]
-                }
-            }));
-        }
-    }
-    for child in node.children() {
-        add_node(&child, world, depth + 1, buffers, names, out)?;
-    }
-    Ok(())
 }
 
 /// The binary glTF 2.0 bytes of `mesh`: positions in metres (mm / 1000, as glTF requires) as
@@ -453,6 +375,11 @@ pub fn glb_bytes(mesh: &TriMesh) -> Result<Vec<u8>, String> {
 
     let json_bytes = json::serialize::to_vec(&root)
         .map_err(|e| format!("cannot serialise the glTF JSON: {e}"))?;
+    assemble_glb(json_bytes, bin)
+}
+
+/// A GLB file (version 2) of a JSON chunk and a binary chunk; both are padded to 4 bytes.
+fn assemble_glb(json_bytes: Vec<u8>, bin: Vec<u8>) -> Result<Vec<u8>, String> {
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header {
             magic: *b"glTF",

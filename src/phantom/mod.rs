@@ -5,6 +5,7 @@
 //! the scenario key that named them.
 
 pub mod calibration_box;
+pub mod confine;
 pub mod femoral;
 pub mod isosurface;
 pub mod mesh;
@@ -60,6 +61,9 @@ pub struct PhantomModel {
     pub mesh: Option<Arc<TriMesh>>,
     /// The mesh file as resolved on disk, for mesh phantoms.
     pub mesh_file: Option<PathBuf>,
+    /// The self-contained copy of the mesh file for an output's `phantoms/` (the bytes that
+    /// were read and checked), for mesh phantoms.
+    pub mesh_package: Option<mesh_io::MeshPackage>,
 }
 
 impl PhantomModel {
@@ -80,26 +84,60 @@ impl PhantomModel {
 }
 
 /// Builds every phantom of the scenario, opening and checking mesh files. Errors name the
-/// scenario key of the offending phantom.
+/// scenario key of the offending phantom; warnings (see [`build_with_warnings`]) are dropped.
 pub fn build(loaded: &LoadedScenario) -> Result<Vec<PhantomModel>, Vec<Diagnostic>> {
+    build_with_warnings(loaded).map(|(models, _)| models)
+}
+
+/// Builds every phantom of the scenario, opening and checking mesh files under the confinement
+/// rule ([`confine`]: the scenario's folder and `loaded.allowed_dirs`). Errors name the
+/// scenario key of the offending phantom; warnings name a mesh whose size is implausible for
+/// its unit.
+pub fn build_with_warnings(
+    loaded: &LoadedScenario,
+) -> Result<(Vec<PhantomModel>, Vec<Diagnostic>), Vec<Diagnostic>> {
+    let confinement =
+        confine::Confinement::new(&loaded.base_dir, &loaded.allowed_dirs).map_err(|e| {
+            vec![
+                Diagnostic::file_error(&loaded.path, e)
+                    .with_help("--allow-dir takes an existing folder"),
+            ]
+        })?;
     let mut errors = Vec::new();
+    let mut warnings = Vec::new();
     let mut models = Vec::new();
     for (i, ph) in loaded.scenario.phantoms.iter().enumerate() {
         let path = KeyPath::root().key("phantoms").index(i);
-        let (markers, mesh, mesh_file) = match ph.shape() {
-            PhantomShape::Beads(beads) => {
-                (beads.iter().map(Marker::from_bead).collect(), None, None)
-            }
-            PhantomShape::CalibrationBox(b) => (calibration_box::box_markers(b), None, None),
+        let (markers, mesh, mesh_file, mesh_package) = match ph.shape() {
+            PhantomShape::Beads(beads) => (
+                beads.iter().map(Marker::from_bead).collect(),
+                None,
+                None,
+                None,
+            ),
+            PhantomShape::CalibrationBox(b) => (calibration_box::box_markers(b), None, None, None),
             PhantomShape::Mesh(m) => {
                 let file = loaded.base_dir.join(&m.file);
                 let unit = m.unit_mm.unwrap_or_else(|| mesh_io::default_unit_mm(&file));
-                match load_closed_mesh(&file, unit) {
-                    Ok(mesh) => (
-                        m.beads.iter().map(Marker::from_bead).collect(),
-                        Some(Arc::new(mesh)),
-                        Some(file),
-                    ),
+                match load_closed_mesh(&file, unit, &confinement) {
+                    Ok(read) => {
+                        let key = if m.unit_mm.is_some() {
+                            "unit_mm"
+                        } else {
+                            "file"
+                        };
+                        warnings.extend(
+                            read.warnings.iter().map(|w| {
+                                loaded.locator.warning(path.key("mesh").key(key), w.clone())
+                            }),
+                        );
+                        (
+                            m.beads.iter().map(Marker::from_bead).collect(),
+                            Some(Arc::new(read.mesh)),
+                            Some(file),
+                            Some(read.package),
+                        )
+                    }
                     Err((message, help)) => {
                         errors.push(
                             loaded
@@ -118,40 +156,44 @@ pub fn build(loaded: &LoadedScenario) -> Result<Vec<PhantomModel>, Vec<Diagnosti
             markers,
             mesh,
             mesh_file,
+            mesh_package,
         });
     }
     if errors.is_empty() {
-        Ok(models)
+        Ok((models, warnings))
     } else {
         Err(errors)
     }
 }
 
-/// Loads a mesh and insists that it is closed and outward-wound (inward winding is fixed).
-fn load_closed_mesh(file: &std::path::Path, unit_mm: f64) -> Result<TriMesh, (String, String)> {
-    if !file.is_file() {
-        return Err((
-            format!("mesh file {} does not exist", file.display()),
+/// Loads a mesh under the confinement rule and insists that it is closed and outward-wound
+/// (inward winding is fixed).
+fn load_closed_mesh(
+    file: &std::path::Path,
+    unit_mm: f64,
+    confinement: &confine::Confinement,
+) -> Result<mesh_io::LoadedMesh, (String, String)> {
+    let mut read = mesh_io::load_mesh_in(file, unit_mm, confinement).map_err(|e| {
+        let help = if e.contains("outside the folders") {
+            "mesh files, buffers and images must lie in the scenario file's folder: copy them there, or allow their folder with --allow-dir DIR"
+        } else if e.contains("does not exist") {
             "mesh paths are relative to the scenario file; check the spelling and the folder"
-                .into(),
-        ));
-    }
-    let mut mesh = mesh_io::load_mesh(file, unit_mm).map_err(|e| {
-        (
-            format!("cannot read mesh {}: {e}", file.display()),
-            "use a closed triangle mesh as .glb, .gltf or .stl".into(),
-        )
+        } else {
+            "use a closed triangle mesh as .glb, .gltf or .stl (a regular file)"
+        };
+        (format!("cannot read mesh: {e}"), help.to_string())
     })?;
-    mesh.check_closed().map_err(|e| {
+    let shown = confine::shown_path(file);
+    read.mesh.check_closed().map_err(|e| {
         (
-            format!("mesh {} is not a closed surface: {e}", file.display()),
+            format!("mesh {shown} is not a closed surface: {e}"),
             "the tracer needs a watertight solid; repair the mesh (e.g. fill holes, unify normals) and export again".into(),
         )
     })?;
-    if mesh.signed_volume_mm3() < 0.0 {
-        mesh.flip_winding();
+    if read.mesh.signed_volume_mm3() < 0.0 {
+        read.mesh.flip_winding();
     }
-    Ok(mesh)
+    Ok(read)
 }
 
 #[cfg(test)]
@@ -172,6 +214,7 @@ mod tests {
             }],
             mesh: Some(Arc::new(TriMesh::uv_sphere(10.0, 4, 4))),
             mesh_file: None,
+            mesh_package: None,
         };
         let pts: Vec<_> = model.extent_points().collect();
         assert_eq!(pts.len(), 1 + model.mesh.as_ref().unwrap().vertices.len());

@@ -17,6 +17,10 @@ pub struct LoadedScenario {
     pub path: PathBuf,
     /// The folder relative paths in the scenario (mesh files) are resolved against.
     pub base_dir: PathBuf,
+    /// Folders besides `base_dir` that files the scenario pulls in (meshes, glTF buffers and
+    /// images) may be read from (`--allow-dir`); empty after loading. Library callers push
+    /// their folders here before building phantoms (see `phantom::confine`).
+    pub allowed_dirs: Vec<PathBuf>,
     /// SHA-256 of the file's bytes, lowercase hex.
     pub sha256: String,
     /// Key path → line/column index of the file, for diagnostics of later stages.
@@ -80,6 +84,7 @@ pub fn from_text(
         scenario,
         path: path.to_path_buf(),
         base_dir: base_dir.to_path_buf(),
+        allowed_dirs: Vec::new(),
         sha256: hex(&Sha256::digest(text.as_bytes())),
         locator,
         warnings,

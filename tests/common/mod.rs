@@ -19,9 +19,22 @@ pub fn rsasim(args: &[&str], env: &[(&str, &str)]) -> Output {
     cmd.output().expect("rsasim runs")
 }
 
-/// Runs a scenario into `out` and panics with its stderr on failure.
+/// The test scenarios (`tests/scenarios/`, `scenarios/golden/small_biplanar.toml`) use the
+/// shipped model in `scenarios/models/`, outside their folder: runs allow it with `--allow-dir`.
+pub const ALLOW_MODELS: [&str; 2] = ["--allow-dir", "scenarios/models"];
+
+/// Runs a scenario into `out` (allowing [`ALLOW_MODELS`]) and panics with its stderr on failure.
 pub fn run_scenario(scenario: &str, out: &Path, env: &[(&str, &str)]) {
-    let o = rsasim(&[scenario, "--out", out.to_str().unwrap()], env);
+    let o = rsasim(
+        &[
+            scenario,
+            "--out",
+            out.to_str().unwrap(),
+            ALLOW_MODELS[0],
+            ALLOW_MODELS[1],
+        ],
+        env,
+    );
     assert!(
         o.status.success(),
         "rsasim {scenario} failed:\n{}",

@@ -417,15 +417,23 @@ fn the_component_is_deterministic() {
 
 #[test]
 fn the_shipped_model_matches_the_code() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenarios/models/femoral_component.glb");
-    let shipped = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let path = root.join("scenarios/models/femoral_component.glb");
     let expected = crate::phantom::mesh_io::glb_bytes(&component().mesh).unwrap();
-    assert!(
-        shipped == expected,
-        "{} is out of date: run `cargo run --release --example femoral_component -- scenarios/models/femoral_component.glb`",
-        path.display()
-    );
+    // The golden scenarios keep their own copy, inside their folder (meshes are read only from a
+    // scenario's own folder unless --allow-dir says otherwise).
+    for file in [
+        "scenarios/models/femoral_component.glb",
+        "scenarios/golden/models/femoral_component.glb",
+    ] {
+        let p = root.join(file);
+        let shipped = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert!(
+            shipped == expected,
+            "{} is out of date: run `cargo run --release --example femoral_component -- {file}`",
+            p.display()
+        );
+    }
     // And it loads back (glTF metres → mm) as the same closed surface.
     let loaded = crate::phantom::mesh_io::load_mesh(&path, 1000.0).unwrap();
     loaded.check_closed().unwrap();
