@@ -154,7 +154,7 @@ fn every_mesh_format_runs_simulate_validate_reconstruct_evaluate() {
             "{file}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
-        let report = std::fs::read_to_string(out.join("report/report.md")).unwrap();
+        let report = std::fs::read_to_string(common::report_dir(&out).join("report.md")).unwrap();
         assert!(
             report.contains("femur"),
             "{file}: the model is missing from the report"

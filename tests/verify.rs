@@ -172,16 +172,7 @@ fn evaluate_states_that_the_truth_was_verified() {
     let (code, err) = evaluate(&out);
     assert_eq!(code, 0, "{err}");
     // The report folder is named after the results file reconstruct wrote.
-    let report = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| {
-            p.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with("report-")
-        })
-        .unwrap();
+    let report = common::report_dir(&out);
     let md = std::fs::read_to_string(report.join("report.md")).unwrap();
     assert!(md.contains("verified against it"), "{md}");
 }

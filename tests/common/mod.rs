@@ -94,3 +94,23 @@ pub fn truths(out: &Path) -> Vec<(PathBuf, rsasim::output::Truth)> {
     v.sort_by(|a: &(PathBuf, rsasim::output::Truth), b| a.1.run.id.cmp(&b.1.run.id));
     v
 }
+
+/// The one report folder `rsasim evaluate` wrote into `out` by default (`report-<results>`).
+pub fn report_dir(out: &Path) -> PathBuf {
+    let found: Vec<PathBuf> = std::fs::read_dir(out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.is_dir()
+                && p.file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with("report-"))
+        })
+        .collect();
+    assert_eq!(
+        found.len(),
+        1,
+        "report folders in {}: {found:?}",
+        out.display()
+    );
+    found.into_iter().next().unwrap()
+}
