@@ -75,12 +75,12 @@ fn report_errors(errors: &[Diagnostic]) -> u8 {
 
 fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), u8> {
     let out = out.unwrap_or_else(|| std::path::Path::new("out").join(&plan.loaded.scenario.name));
-    if out.exists() && !force {
-        eprintln!(
-            "error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere",
-            out.display()
-        );
-        return Err(2);
+    // Every refusal (exit 2) comes here, before any simulation work.
+    let target =
+        simulate::claim_output(plan, &out, force).map_err(|errors| report_errors(&errors))?;
+    target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    if let Err(e) = rsasim::output::commit::interrupt::install() {
+        eprintln!("warning: Ctrl-C will not report what it leaves: {e}");
     }
     let bar = ProgressBar::new(plan.image_count() as u64);
     bar.set_style(
@@ -88,12 +88,16 @@ fn run(plan: &Plan, out: Option<std::path::PathBuf>, force: bool) -> Result<(), 
             .expect("valid template"),
     );
     let start = Instant::now();
-    let summary = simulate::simulate(plan, &out, force, &|| bar.inc(1)).map_err(|e| {
+    let summary = simulate::simulate(plan, target, &|| bar.inc(1)).map_err(|e| {
         bar.abandon();
-        eprintln!("error: writing {} failed: {e}", out.display());
+        eprintln!(
+            "error: writing {} failed: {e}\n  = note: nothing was replaced; a previous output there is unchanged",
+            out.display()
+        );
         1
     })?;
     bar.finish_and_clear();
+    summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
     eprintln!(
         "rsasim: {} runs, {} image files in {:.1} s -> {}",
         summary.runs,
@@ -166,9 +170,14 @@ fn evaluate(
         },
     };
     let start = Instant::now();
-    let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
     let dir = report_dir.unwrap_or_else(|| out.join("report"));
-    let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
+    // The report folder is claimed (and refused, exit 2) before any work, once OUT is known to
+    // be an output folder (the claim creates the lock file beside the report folder).
+    rsasim::output::check_output_folder(out).map_err(|errors| report_errors(&errors))?;
+    let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[d]))?;
+    target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
+    let written = report::write_reports_into(&result, target, &formats).map_err(|e| {
         eprintln!(
             "error: writing the reports into {} failed: {e}",
             dir.display()

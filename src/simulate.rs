@@ -12,7 +12,8 @@ use crate::diagnostic::Diagnostic;
 use crate::expand::{self, Run};
 use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
-use crate::output::atomic::{StagedDir, write_atomic};
+use crate::output::atomic::write_staged;
+use crate::output::commit::{FolderKind, OutputTarget};
 use crate::output::exr::{ExrAttr, encode_exr_with};
 use crate::output::tiff::encode_tiff;
 use crate::output::{self, FileRef, ImageTruth, Manifest, ManifestFile, ProjectedMarker, Truth};
@@ -74,17 +75,33 @@ pub struct Summary {
     pub image_files: usize,
     /// Number of runs.
     pub runs: usize,
+    /// What the commit wants the user to know (e.g. an old output it could not remove).
+    pub notes: Vec<String>,
 }
 
-/// Writes the whole protocol into `out_dir` (refused if it exists, unless `force`). `progress`
-/// is called once per finished image (exposure × detector, all formats).
-pub fn simulate(
+/// Claims `out_dir` for the output of `plan`, before any simulation work: refuses (as errors for
+/// the user) an existing folder without `force`, and with `force` anything but an earlier rsasim
+/// output, the current folder or its ancestors, a folder holding the scenario or a file it reads,
+/// a symbolic link or a file; takes the one-writer lock and cleans what killed runs left
+/// ([`crate::output::commit`]).
+pub fn claim_output(
     plan: &Plan,
     out_dir: &Path,
     force: bool,
+) -> Result<OutputTarget, Vec<Diagnostic>> {
+    let mut inputs = vec![plan.loaded.path.clone()];
+    inputs.extend(plan.models.iter().filter_map(|m| m.mesh_file.clone()));
+    OutputTarget::claim(out_dir, FolderKind::Simulation { force, inputs }).map_err(|d| vec![d])
+}
+
+/// Writes the whole protocol into the claimed `target`: staged beside it, swapped in only once
+/// complete. `progress` is called once per finished image (exposure × detector, all formats).
+pub fn simulate(
+    plan: &Plan,
+    target: OutputTarget,
     progress: &(dyn Fn() + Sync),
 ) -> std::io::Result<Summary> {
-    let staged = StagedDir::create(out_dir, force)?;
+    let staged = target.stage()?;
     let root = staged.path();
     let s = &plan.loaded.scenario;
     let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
@@ -94,6 +111,12 @@ pub fn simulate(
         .collect();
 
     let mut files = write_phantoms(plan, root)?;
+    let readme = output::folder_readme::folder_readme(s, &plan.runs);
+    files.push(manifest_entry(
+        root,
+        &root.join("README.md"),
+        readme.as_bytes(),
+    )?);
     let per_run: Vec<Vec<ManifestFile>> = plan
         .runs
         .par_iter()
@@ -116,12 +139,13 @@ pub fn simulate(
         runs: plan.runs.len(),
         files,
     };
-    write_atomic(&root.join("manifest.json"), &json_bytes(&manifest))?;
-    let out_dir = staged.commit()?;
+    write_staged(&root.join("manifest.json"), &json_bytes(&manifest))?;
+    let committed = staged.commit()?;
     Ok(Summary {
-        out_dir,
+        out_dir: committed.path,
         image_files,
         runs: plan.runs.len(),
+        notes: committed.notes,
     })
 }
 
@@ -133,7 +157,7 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
 }
 
 fn manifest_entry(root: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<ManifestFile> {
-    let sha256 = write_atomic(path, bytes)?;
+    let sha256 = write_staged(path, bytes)?;
     let rel = path.strip_prefix(root).expect("inside the output folder");
     Ok(ManifestFile {
         path: slash_path(rel),
