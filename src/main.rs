@@ -174,7 +174,7 @@ fn evaluate(
     // The report folder is claimed (and refused, exit 2) before any work, once OUT is known to
     // be an output folder (the claim creates the lock file beside the report folder).
     rsasim::output::check_output_folder(out).map_err(|errors| report_errors(&errors))?;
-    let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[d]))?;
+    let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[*d]))?;
     target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
     let result = evaluate::evaluate(out, &options).map_err(|errors| report_errors(&errors))?;
     let written = report::write_reports_into(&result, target, &formats).map_err(|e| {

@@ -91,7 +91,7 @@ pub fn claim_output(
 ) -> Result<OutputTarget, Vec<Diagnostic>> {
     let mut inputs = vec![plan.loaded.path.clone()];
     inputs.extend(plan.models.iter().filter_map(|m| m.mesh_file.clone()));
-    OutputTarget::claim(out_dir, FolderKind::Simulation { force, inputs }).map_err(|d| vec![d])
+    OutputTarget::claim(out_dir, FolderKind::Simulation { force, inputs }).map_err(|d| vec![*d])
 }
 
 /// Writes the whole protocol into the claimed `target`: staged beside it, swapped in only once

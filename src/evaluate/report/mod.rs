@@ -109,7 +109,7 @@ pub enum WriteReportsError {
 /// [`REPORT_MARKER`]: crate::output::commit::guard::REPORT_MARKER
 pub fn claim_report_dir(
     dir: &Path,
-) -> Result<crate::output::commit::OutputTarget, crate::diagnostic::Diagnostic> {
+) -> Result<crate::output::commit::OutputTarget, Box<crate::diagnostic::Diagnostic>> {
     use crate::output::commit::{FolderKind, OutputTarget};
     OutputTarget::claim(dir, FolderKind::Report)
 }
@@ -120,7 +120,7 @@ pub fn write_reports(
     dir: &Path,
     formats: &[Format],
 ) -> Result<Vec<PathBuf>, WriteReportsError> {
-    let target = claim_report_dir(dir).map_err(|d| WriteReportsError::Refused(Box::new(d)))?;
+    let target = claim_report_dir(dir).map_err(WriteReportsError::Refused)?;
     Ok(write_reports_into(report, target, formats)?)
 }
 

@@ -77,13 +77,13 @@ pub fn existing(path: &Path) -> std::io::Result<Existing> {
     }
 }
 
-fn refuse(shown: &Path, message: impl Into<String>, help: impl Into<String>) -> Diagnostic {
-    Diagnostic::file_error(shown, message).with_help(help)
+fn refuse(shown: &Path, message: impl Into<String>, help: impl Into<String>) -> Box<Diagnostic> {
+    Box::new(Diagnostic::file_error(shown, message).with_help(help))
 }
 
 /// Resolves `out` against the current folder: the folder part is made canonical (links
 /// followed) as far as it exists; the last component is kept as given.
-pub fn resolve(out: &Path) -> Result<Resolved, Diagnostic> {
+pub fn resolve(out: &Path) -> Result<Resolved, Box<Diagnostic>> {
     let io_refusal = |e: std::io::Error| {
         refuse(
             out,
@@ -163,7 +163,7 @@ fn canonical_prefix(path: &Path) -> std::io::Result<PathBuf> {
 }
 
 /// Checks that writing `target` may proceed given what is there now; `Ok` with what exists.
-pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Diagnostic> {
+pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagnostic>> {
     let shown = &target.shown;
     let what = || format!("output folder {}", shown.display());
     // The deepest existing ancestor must be a folder (a file there would fail only at the end).

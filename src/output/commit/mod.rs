@@ -60,12 +60,14 @@ pub struct OutputTarget {
 impl OutputTarget {
     /// Claims `out` for writing a folder of `kind`; every refusal is an error for the user
     /// (exit 2) and leaves everything as it was.
-    pub fn claim(out: &Path, kind: FolderKind) -> Result<OutputTarget, Diagnostic> {
+    pub fn claim(out: &Path, kind: FolderKind) -> Result<OutputTarget, Box<Diagnostic>> {
         let resolved = guard::resolve(out)?;
         guard::check(&resolved, &kind)?;
         let io_error = |what: &str, e: std::io::Error| {
-            Diagnostic::file_error(out, format!("cannot {what}: {e}"))
-                .with_help("check that the folder of --out exists and can be written to")
+            Box::new(
+                Diagnostic::file_error(out, format!("cannot {what}: {e}"))
+                    .with_help("check that the folder of --out exists and can be written to"),
+            )
         };
         std::fs::create_dir_all(&resolved.parent)
             .map_err(|e| io_error(&format!("create {}", resolved.parent.display()), e))?;
@@ -73,14 +75,16 @@ impl OutputTarget {
             Ok(lock) => lock,
             Err(LockError::Busy(pid)) => {
                 let pid = pid.map_or("pid unknown".to_string(), |p| format!("pid {p}"));
-                return Err(Diagnostic::file_error(
-                    out,
-                    format!(
-                        "another rsasim process ({pid}) is writing {}",
-                        out.display()
-                    ),
-                )
-                .with_help("wait for it to finish, or write elsewhere with --out"));
+                return Err(Box::new(
+                    Diagnostic::file_error(
+                        out,
+                        format!(
+                            "another rsasim process ({pid}) is writing {}",
+                            out.display()
+                        ),
+                    )
+                    .with_help("wait for it to finish, or write elsewhere with --out"),
+                ));
             }
             Err(LockError::Io(e)) => return Err(io_error("lock the output folder", e)),
         };
