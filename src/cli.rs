@@ -32,10 +32,14 @@ pub struct RunArgs {
     /// The scenario file to run (TOML), e.g. scenarios/biplanar.toml.
     #[arg(required = true)]
     pub scenario: Option<PathBuf>,
-    /// Output folder. Default: out/<scenario name>.
+    /// Output folder. Default: out/<scenario name>. It is written in a private staging folder
+    /// beside it and swapped in only once complete; a lock file `.<name>.rsasim-lock` beside it
+    /// keeps a second rsasim process out. A file or a symbolic link there is refused.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Replace the output folder if it already exists (it is swapped in only once complete).
+    /// Replace the output folder if it is an earlier rsasim output (its manifest.json says so) or
+    /// empty; never the current folder or a parent of it, a folder holding the scenario or a mesh
+    /// it reads, a link or a file. The old output is removed only after the new one is in place.
     #[arg(long)]
     pub force: bool,
     /// Blind layout: write the truth (every truth.json, the full scenario with its seed, and a

@@ -144,14 +144,18 @@ fn run(
             .iter()
             .for_each(|w| eprintln!("{w}"));
     }
-    for dir in std::iter::once(out.as_path()).chain(truth_dir) {
-        if dir.exists() && !force {
-            eprintln!(
-                "error: output folder {} already exists\n  = help: pass --force to replace it, or --out DIR to write elsewhere",
-                dir.display()
-            );
-            return Err(2);
-        }
+    // Every refusal (exit 2) comes here, before any simulation work.
+    let target =
+        simulate::claim_output(plan, &out, force).map_err(|errors| report_errors(&errors))?;
+    let truth_target = truth_dir
+        .map(|t| simulate::claim_output(plan, t, force))
+        .transpose()
+        .map_err(|errors| report_errors(&errors))?;
+    for t in std::iter::once(&target).chain(&truth_target) {
+        t.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    }
+    if let Err(e) = rsasim::output::commit::interrupt::install() {
+        eprintln!("warning: Ctrl-C will not report what it leaves: {e}");
     }
     let bar = ProgressBar::new(plan.image_count() as u64);
     bar.set_style(
@@ -159,13 +163,16 @@ fn run(
             .expect("valid template"),
     );
     let start = Instant::now();
-    let summary =
-        simulate::simulate(plan, &out, truth_dir, force, &|| bar.inc(1)).map_err(|e| {
-            bar.abandon();
-            eprintln!("error: writing {} failed: {e}", out.display());
-            1
-        })?;
+    let summary = simulate::simulate(plan, target, truth_target, &|| bar.inc(1)).map_err(|e| {
+        bar.abandon();
+        eprintln!(
+            "error: writing {} failed: {e}\n  = note: nothing was replaced; a previous output there is unchanged",
+            out.display()
+        );
+        1
+    })?;
     bar.finish_and_clear();
+    summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
     eprintln!(
         "rsasim: {} runs, {} image files in {:.1} s -> {}",
         summary.runs,
@@ -269,8 +276,12 @@ fn evaluate(
     for note in &result.notes {
         eprintln!("note: {note}");
     }
+    // The default folder is named after the results file, known once they are read. Scoring
+    // writes nothing, so the claim (refused with exit 2) still comes before any file is written.
     let dir = report_dir.unwrap_or_else(|| out.join(report::default_folder_name(&result)));
-    let written = report::write_reports(&result, &dir, &formats).map_err(|e| {
+    let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[*d]))?;
+    target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    let written = report::write_reports_into(&result, target, &formats).map_err(|e| {
         eprintln!(
             "error: writing the reports into {} failed: {e}",
             dir.display()

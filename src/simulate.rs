@@ -13,7 +13,8 @@ use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::expand::{self, Run};
 use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
-use crate::output::atomic::{StagedDir, write_atomic};
+use crate::output::atomic::write_staged;
+use crate::output::commit::{FolderKind, OutputTarget};
 use crate::output::exr::{ExrAttr, encode_exr_with};
 use crate::output::tiff::encode_tiff;
 use crate::output::{
@@ -147,26 +148,45 @@ pub struct Summary {
     pub image_files: usize,
     /// Number of runs.
     pub runs: usize,
+    /// What the commit wants the user to know (e.g. an old output it could not remove).
+    pub notes: Vec<String>,
 }
 
-/// Writes the whole protocol into `out_dir` (refused if it exists, unless `force`). `progress`
-/// is called once per finished image (exposure × detector, all formats).
-///
-/// With `truth_dir` (the blind layout, [`check_truth_dir`] first), `out_dir` gets only what the
-/// software under test may see (images, `phantoms/`, the nominal set-up without seed or random
-/// ranges) and `truth_dir` the truth: every `runs/<id>/truth.json`, the full scenario as run with
-/// its `phantoms/`, and a manifest that binds `out_dir` by the SHA-256 of its manifest file.
-pub fn simulate(
+/// Claims `out_dir` for the output of `plan`, before any simulation work: refuses (as errors for
+/// the user) an existing folder without `force`, and with `force` anything but an earlier rsasim
+/// output, the current folder or its ancestors, a folder holding the scenario or a file it reads,
+/// a symbolic link or a file; takes the one-writer lock and cleans what killed runs left
+/// ([`crate::output::commit`]).
+pub fn claim_output(
     plan: &Plan,
     out_dir: &Path,
-    truth_dir: Option<&Path>,
     force: bool,
+) -> Result<OutputTarget, Vec<Diagnostic>> {
+    let mut inputs = vec![plan.loaded.path.clone()];
+    inputs.extend(plan.models.iter().filter_map(|m| m.mesh_file.clone()));
+    OutputTarget::claim(out_dir, FolderKind::Simulation { force, inputs }).map_err(|d| vec![*d])
+}
+
+/// Writes the whole protocol into the claimed `target` ([`claim_output`]): staged beside it,
+/// swapped in only once complete. `progress` is called once per finished image (exposure ×
+/// detector, all formats).
+///
+/// With `truth` (the blind layout, claimed the same way after [`check_truth_dir`]), `target` gets
+/// only what the software under test may see (images, `phantoms/`, the nominal set-up without
+/// seed or random ranges) and `truth` the truth: every `runs/<id>/truth.json`, the full scenario
+/// as run with its `phantoms/`, and a manifest that binds the images folder by the SHA-256 of its
+/// manifest file. The images folder is committed first, then the truth folder.
+pub fn simulate(
+    plan: &Plan,
+    target: OutputTarget,
+    truth: Option<OutputTarget>,
     progress: &(dyn Fn() + Sync),
 ) -> std::io::Result<Summary> {
-    let staged = StagedDir::create(out_dir, force)?;
-    let truth_staged = truth_dir.map(|t| StagedDir::create(t, force)).transpose()?;
+    let images_folder_name = target.name().to_string();
+    let staged = target.stage()?;
+    let truth_staged = truth.map(OutputTarget::stage).transpose()?;
     let root = staged.path();
-    let truth_root = truth_staged.as_ref().map(StagedDir::path);
+    let truth_root = truth_staged.as_ref().map(|t| t.path());
     let s = &plan.loaded.scenario;
     let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
         .models
@@ -175,6 +195,8 @@ pub fn simulate(
         .collect();
 
     let mut files = write_phantoms(plan, root, truth_root.is_some())?;
+    let layout = truth_root.map(|_| Layout::Images);
+    files.push(write_readme(plan, root, layout)?);
     let per_run: Vec<RunFiles> = plan
         .runs
         .par_iter()
@@ -201,30 +223,36 @@ pub fn simulate(
                 ..manifest.clone()
             };
             let images_bytes = images.to_bytes();
-            write_atomic(&root.join("manifest.json"), &images_bytes)?;
+            write_staged(&root.join("manifest.json"), &images_bytes)?;
             truth_files.extend(write_phantoms(plan, truth_root, false)?);
+            truth_files.push(write_readme(plan, truth_root, Some(Layout::Truth))?);
             manifest.layout = Some(Layout::Truth);
             manifest.images = Some(ImagesBinding {
                 manifest_sha256: hex(&Sha256::digest(&images_bytes)),
-                folder: out_dir
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
+                folder: images_folder_name,
             });
             manifest.files = sorted(truth_files);
         }
     }
     let manifest_root = truth_root.unwrap_or(root);
-    write_atomic(&manifest_root.join("manifest.json"), &manifest.to_bytes())?;
-    let out_dir = staged.commit()?;
+    write_staged(&manifest_root.join("manifest.json"), &manifest.to_bytes())?;
+    let committed = staged.commit()?;
+    let mut notes = committed.notes;
     if let Some(truth) = truth_staged {
-        truth.commit()?;
+        notes.extend(truth.commit()?.notes);
     }
     Ok(Summary {
-        out_dir,
+        out_dir: committed.path,
         image_files,
         runs: plan.runs.len(),
+        notes,
     })
+}
+
+/// `README.md` of a folder of the given layout ([`output::folder_readme`]), written and listed.
+fn write_readme(plan: &Plan, root: &Path, layout: Option<Layout>) -> std::io::Result<ManifestFile> {
+    let text = output::folder_readme::folder_readme(&plan.loaded.scenario, &plan.runs, layout);
+    manifest_entry(root, &root.join("README.md"), text.as_bytes())
 }
 
 /// The manifest of an ordinary output folder with `files`: program, exact build, output-format
@@ -311,7 +339,7 @@ fn json_bytes<T: serde::Serialize>(value: &T) -> Vec<u8> {
 }
 
 fn manifest_entry(root: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<ManifestFile> {
-    let sha256 = write_atomic(path, bytes)?;
+    let sha256 = write_staged(path, bytes)?;
     let rel = path.strip_prefix(root).expect("inside the output folder");
     Ok(ManifestFile {
         path: slash_path(rel),

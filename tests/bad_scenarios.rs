@@ -373,8 +373,10 @@ fn an_existing_output_folder_is_refused_without_force() {
         ],
         &[],
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(!out.join("keep.txt").exists() && out.join("manifest.json").exists());
+    // A folder rsasim did not write is never replaced, even with --force (issue 10).
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not written by rsasim"));
+    assert!(out.join("keep.txt").exists() && !out.join("manifest.json").exists());
 }
 
 /// Writes a closed sphere of radius 10 mm as `ball.stl` into `dir`.

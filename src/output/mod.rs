@@ -2,7 +2,9 @@
 //! user has, and the schemas of the JSON files (DESIGN.md, "Output layout").
 
 pub mod atomic;
+pub mod commit;
 pub mod exr;
+pub mod folder_readme;
 pub mod manifest;
 pub mod measured;
 pub mod tiff;

@@ -91,15 +91,51 @@ pub fn render(report: &Report, format: Format) -> String {
     }
 }
 
-/// Writes `report.<ext>` into `dir` (created if missing) for each of `formats` (duplicates are
-/// written once), and `iso5725.csv` beside `report.csv` when CSV is chosen. Every file is written
-/// atomically. Returns the paths written, in order.
+/// Why [`write_reports`] wrote nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteReportsError {
+    /// The report folder may not be replaced (the user's mistake: exit 2).
+    #[error("{0}")]
+    Refused(Box<crate::diagnostic::Diagnostic>),
+    /// Writing failed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+/// Claims `dir` as a report folder before any work: refused when something there is not a
+/// folder `rsasim evaluate` wrote (it holds the [`REPORT_MARKER`] file, or only report files of
+/// an earlier version), a link, a file, or the current folder or one of its parents.
+///
+/// [`REPORT_MARKER`]: crate::output::commit::guard::REPORT_MARKER
+pub fn claim_report_dir(
+    dir: &Path,
+) -> Result<crate::output::commit::OutputTarget, Box<crate::diagnostic::Diagnostic>> {
+    use crate::output::commit::{FolderKind, OutputTarget};
+    OutputTarget::claim(dir, FolderKind::Report)
+}
+
+/// [`claim_report_dir`] then [`write_reports_into`].
 pub fn write_reports(
     report: &Report,
     dir: &Path,
     formats: &[Format],
+) -> Result<Vec<PathBuf>, WriteReportsError> {
+    let target = claim_report_dir(dir).map_err(WriteReportsError::Refused)?;
+    Ok(write_reports_into(report, target, formats)?)
+}
+
+/// Writes `report.<ext>` for each of `formats` (duplicates are written once), and `iso5725.csv`
+/// beside `report.csv` when CSV is chosen, into a folder staged beside `target`, then swaps it in
+/// whole: the folder holds exactly these files (and the marker), never stale ones of an earlier
+/// run. Returns the final paths written, in order.
+pub fn write_reports_into(
+    report: &Report,
+    target: crate::output::commit::OutputTarget,
+    formats: &[Format],
 ) -> std::io::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)?;
+    use crate::output::atomic::write_staged;
+    let dir = target.shown().to_path_buf();
+    let staged = target.stage()?;
     let mut written = Vec::new();
     let mut done = Vec::new();
     for &format in formats {
@@ -107,15 +143,21 @@ pub fn write_reports(
             continue;
         }
         done.push(format);
-        let path = dir.join(format!("report.{}", format.extension()));
-        crate::output::atomic::write_atomic(&path, render(report, format).as_bytes())?;
-        written.push(path);
+        let name = format!("report.{}", format.extension());
+        write_staged(
+            &staged.path().join(&name),
+            render(report, format).as_bytes(),
+        )?;
+        written.push(dir.join(name));
         if format == Format::Csv {
-            let path = dir.join("iso5725.csv");
-            crate::output::atomic::write_atomic(&path, csv_iso5725(report).as_bytes())?;
-            written.push(path);
+            write_staged(
+                &staged.path().join("iso5725.csv"),
+                csv_iso5725(report).as_bytes(),
+            )?;
+            written.push(dir.join("iso5725.csv"));
         }
     }
+    staged.commit()?;
     Ok(written)
 }
 
@@ -285,7 +327,21 @@ mod tests {
         );
         assert_eq!(std::fs::read_to_string(&paths[0]).unwrap(), html(&r));
         assert_eq!(std::fs::read_to_string(&paths[2]).unwrap(), csv_iso5725(&r));
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 3);
+        // The three files and the marker that lets the next evaluate replace the folder.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 4);
+        // A second run asking for Markdown only leaves no stale file of the first.
+        let paths = write_reports(&r, &dir, &[Format::Markdown]).unwrap();
+        assert_eq!(paths, [dir.join("report.md")]);
+        assert!(!dir.join("report.html").exists() && !dir.join("iso5725.csv").exists());
+        // A folder of the user's is never replaced.
+        let mine = root.path().join("thesis");
+        std::fs::create_dir(&mine).unwrap();
+        std::fs::write(mine.join("chapter1.tex"), "mine").unwrap();
+        assert!(matches!(
+            write_reports(&r, &mine, &Format::ALL),
+            Err(WriteReportsError::Refused(_))
+        ));
+        assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
         // For looking at the output by hand: RSASIM_REPORT_SAMPLE=/some/dir cargo test --lib report
         if let Ok(sample) = std::env::var("RSASIM_REPORT_SAMPLE") {
             write_reports(&r, Path::new(&sample), &Format::ALL).unwrap();
