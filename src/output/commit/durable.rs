@@ -52,20 +52,8 @@ pub fn tree_bytes(root: &Path) -> u64 {
     total
 }
 
-/// `bytes` for people: `512 B`, `3.4 MB`, `1.2 GB` (decimal units).
-pub fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 4] = ["kB", "MB", "GB", "TB"];
-    if bytes < 1000 {
-        return format!("{bytes} B");
-    }
-    let mut value = bytes as f64 / 1000.0;
-    let mut unit = 0;
-    while value >= 1000.0 && unit + 1 < UNITS.len() {
-        value /= 1000.0;
-        unit += 1;
-    }
-    format!("{value:.1} {}", UNITS[unit])
-}
+/// `bytes` for people, in decimal units: one rule for every message ([`crate::cost::human_bytes`]).
+pub use crate::cost::human_bytes;
 
 #[cfg(test)]
 mod tests {
