@@ -27,7 +27,7 @@
 //! - One result per run and entity: a repeated (run, kind, id) row, or a repeated id in a
 //!   `measured.json` array, is an error naming both lines.
 //! - A UTF-8 byte-order mark at the start of a file is ignored.
-//! - Values echoed in errors are cut to [`MAX_ECHO_CHARS`] characters.
+//! - Values echoed in errors are cut to [`crate::diagnostic::ECHO_MAX_CHARS`] characters.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -65,16 +65,9 @@ pub struct RunMeasurement {
 /// or format error, and would overflow the statistics.
 pub const MAX_ABS_MM: f64 = 1e6;
 
-/// Longest value echoed in an error message, in characters; longer values are cut with `…`.
-pub const MAX_ECHO_CHARS: usize = 80;
-
-/// `value` cut to [`MAX_ECHO_CHARS`] characters for an error message.
-// TODO(merge): use diagnostic's helper
+/// `value` cut for a message, by the one rule of [`crate::diagnostic::cut`].
 fn cut(value: &str) -> String {
-    match value.char_indices().nth(MAX_ECHO_CHARS) {
-        Some((at, _)) => format!("{}… ({} bytes)", &value[..at], value.len()),
-        None => value.to_string(),
-    }
+    crate::diagnostic::cut(value).into_owned()
 }
 
 /// The text without a leading UTF-8 byte-order mark.
@@ -688,11 +681,14 @@ mod tests {
         assert_eq!(cut("det1"), "det1");
         let long = "é".repeat(10_000);
         let c = cut(&long);
-        assert_eq!(c.chars().filter(|&ch| ch == 'é').count(), MAX_ECHO_CHARS);
-        assert!(c.ends_with("… (20000 bytes)"), "{c}");
+        assert_eq!(
+            c.chars().filter(|&ch| ch == 'é').count(),
+            crate::diagnostic::ECHO_MAX_CHARS
+        );
+        assert!(c.ends_with("… (19600 more bytes)"), "{c}");
         let message = format!("invalid type: string \"{long}\", expected f64");
         let m = cut_message(&message);
-        assert!(m.len() < 300 && m.ends_with("expected f64"), "{m}");
+        assert!(m.len() < 700 && m.ends_with("expected f64"), "{m}");
     }
 
     #[test]

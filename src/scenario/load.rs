@@ -6,6 +6,7 @@ use sha2::{Digest, Sha256};
 
 use super::Scenario;
 use super::lengths::check_lengths;
+use super::magnitudes::check_magnitudes;
 use super::validate::validate;
 use crate::diagnostic::{Diagnostic, Locator};
 
@@ -74,6 +75,10 @@ pub fn from_text(
         }
         vec![d]
     })?;
+    let magnitude_errors = check_magnitudes(&scenario, &locator);
+    if !magnitude_errors.is_empty() {
+        return Err(magnitude_errors);
+    }
     let diagnostics = validate(&scenario, &locator);
     let (errors, warnings): (Vec<_>, Vec<_>) =
         diagnostics.into_iter().partition(Diagnostic::is_error);

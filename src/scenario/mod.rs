@@ -6,6 +6,7 @@
 
 mod lengths;
 mod load;
+mod magnitudes;
 mod model;
 mod validate;
 

@@ -37,6 +37,7 @@ pub(super) fn read_gltf(
     check: &VertexCheck,
 ) -> Result<GltfMesh, String> {
     check_glb_header(bytes)?;
+    check_position_accessors(bytes)?;
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| describe_error(&e))?;
     let json: Cow<[u8]> = if bytes.starts_with(b"glTF") {
         gltf::binary::Glb::from_slice(bytes)
@@ -146,6 +147,47 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
         )),
         _ => Err("not a valid glTF 2.0 file: the GLB header is truncated".into()),
     }
+}
+
+/// Every primitive's `POSITION` must name an existing accessor. The `gltf` crate's validation
+/// indexes the accessor list with that number unchecked (gltf-json 1.4.1, `mesh.rs`) and panics
+/// on one out of range, so it is checked here first, on the raw JSON. JSON the crate will reject
+/// anyway is left to its own error.
+fn check_position_accessors(bytes: &[u8]) -> Result<(), String> {
+    let json: &[u8] = if bytes.starts_with(b"glTF") {
+        // The first chunk of a GLB is its JSON: length at 12, type at 16, data from 20.
+        let len = bytes
+            .get(12..16)
+            .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+        match bytes.get(20..20usize.saturating_add(len)) {
+            Some(j) => j,
+            None => return Ok(()),
+        }
+    } else {
+        bytes
+    };
+    let Ok(doc) = serde_json::from_slice::<serde_json::Value>(json) else {
+        return Ok(());
+    };
+    let accessors = doc
+        .get("accessors")
+        .and_then(|a| a.as_array())
+        .map_or(0, Vec::len);
+    let meshes = doc.get("meshes").and_then(|m| m.as_array());
+    for (m, mesh) in meshes.into_iter().flatten().enumerate() {
+        let primitives = mesh.get("primitives").and_then(|p| p.as_array());
+        for (p, primitive) in primitives.into_iter().flatten().enumerate() {
+            let position = primitive.get("attributes").and_then(|a| a.get("POSITION"));
+            if let Some(index) = position.and_then(|i| i.as_u64())
+                && index >= accessors as u64
+            {
+                return Err(format!(
+                    "primitive {p} of mesh {m}: POSITION names accessor {index}, but the file has {accessors} accessor(s)"
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A parse or validation error of the `gltf` crate, without any value from the file.

@@ -573,3 +573,18 @@ fn a_glb_header_with_a_short_length_is_refused() {
     let err = load_mesh(&path, 1000.0).unwrap_err();
     assert!(err.contains("GLB header declares 4 bytes"), "{err}");
 }
+
+#[test]
+fn a_position_accessor_out_of_range_is_an_error_not_a_panic_in_the_gltf_crate() {
+    // Found by tests/mutation.rs (mesh mutant seed 1659): gltf-json's validation indexed the
+    // accessor list with POSITION unchecked.
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 7}}]}], "accessors": []}"#;
+    let path = write(dir.path(), "oob.gltf", text.to_string());
+    let err = load_mesh(&path, 1.0).unwrap_err();
+    assert!(
+        err.contains("POSITION names accessor 7") && err.contains("0 accessor(s)"),
+        "{err}"
+    );
+}
