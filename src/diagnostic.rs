@@ -27,6 +27,13 @@ pub fn cut(text: &str) -> Cow<'_, str> {
 
 /// `text` cut to `max_chars` characters, with `… (N more bytes)` appended when anything was cut.
 fn cut_at(text: &str, max_chars: usize) -> Cow<'_, str> {
+    // A value cut once keeps its marker and its true count when it is cut again.
+    if let Some(at) = text.rfind("… (")
+        && text.ends_with(" more bytes)")
+        && text[..at].chars().count() <= max_chars
+    {
+        return Cow::Borrowed(text);
+    }
     match text.char_indices().nth(max_chars) {
         None => Cow::Borrowed(text),
         Some((end, _)) => Cow::Owned(format!(
@@ -393,6 +400,8 @@ mod tests {
         assert_eq!(cut("short"), "short");
         let c = cut(&long);
         assert!(c.len() < 300 && c.ends_with("… (599800 more bytes)"), "{c}");
+        // Cutting again keeps the true count (a module cuts a value, the display cuts messages).
+        assert_eq!(cut(&c), c);
         // Multi-byte characters are never split.
         assert!(cut(&"é".repeat(300)).ends_with("… (200 more bytes)"));
         let doc = format!("name = \"{long}\"\nbpp = 17\n");

@@ -655,7 +655,7 @@ fn duplicates_implausible_values_and_long_values_are_errors_naming_the_place() {
         &[
             "r.csv:2:",
             "no source has the id `xxxx",
-            "… (1048576 bytes)",
+            "… (1048376 more bytes)",
         ],
     );
     assert!(stderr.len() < 2000, "{} bytes of stderr", stderr.len());
