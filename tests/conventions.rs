@@ -94,3 +94,14 @@ fn tau_is_the_one_sided_95_percent_student_quantile_by_default() {
         .unwrap();
     assert!((tau - 1.729).abs() < 5e-4, "τ = {tau}");
 }
+
+#[test]
+fn plausibility_bounds_and_echo_length_are_the_documented_ones() {
+    states("lies within ±1e6 (mm or degrees)");
+    assert_eq!(rsasim::evaluate::input::MAX_ABS_MM, 1e6);
+    states("Measured rotations within 1e-3 of a proper rotation");
+    assert_eq!(rsasim::evaluate::rotation::REPAIR_TOLERANCE, 1e-3);
+    states("cut at 200 characters, marked `… (N more bytes)`");
+    assert_eq!(rsasim::diagnostic::ECHO_MAX_CHARS, 200);
+    assert!(rsasim::diagnostic::cut(&"x".repeat(201)).ends_with("… (1 more bytes)"));
+}
