@@ -7,6 +7,31 @@ use serde::{Deserialize, Serialize};
 /// The format tag of measured files.
 pub const MEASURED_FORMAT: &str = "rsasim-measured/1";
 
+/// How rsasim's reference program (`rsasim reconstruct`) signs its results: their `software`
+/// starts with this.
+pub const REFERENCE_SOFTWARE_PREFIX: &str = "rsasim reconstruct ";
+
+/// Whether `file` holds results written by rsasim's reference program: a regular file of at
+/// most 64 MiB (anything larger is not ours and is not read) that parses as [`Measured`], a
+/// UTF-8 BOM allowed, and whose `software` starts with [`REFERENCE_SOFTWARE_PREFIX`]. One rule for
+/// `reconstruct` (which never replaces another software's results) and `--force` (which never
+/// deletes them).
+pub fn written_by_reference_program(file: &std::path::Path) -> bool {
+    let Ok(meta) = std::fs::symlink_metadata(file) else {
+        return false;
+    };
+    if !meta.is_file() || meta.len() > 64 << 20 {
+        return false;
+    }
+    let Ok(bytes) = std::fs::read(file) else {
+        return false;
+    };
+    let text = String::from_utf8_lossy(&bytes);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    serde_json::from_str::<Measured>(text)
+        .is_ok_and(|m| m.software.starts_with(REFERENCE_SOFTWARE_PREFIX))
+}
+
 /// One run's reconstruction by a software under test, in the calibration box frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]

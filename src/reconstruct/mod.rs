@@ -169,22 +169,11 @@ fn check_results_name(out: &Path, name: &str) -> Result<(), Vec<Diagnostic>> {
 }
 
 /// Whether `file` may be (re)written: it does not exist, or rsasim wrote it (its `software`
-/// starts with [`pipeline::SOFTWARE_PREFIX`]).
+/// starts with [`pipeline::SOFTWARE_PREFIX`]; see
+/// [`crate::output::measured::written_by_reference_program`]).
 fn ours_or_absent(file: &Path) -> bool {
-    let Ok(meta) = std::fs::symlink_metadata(file) else {
-        return true;
-    };
-    // Results files are small; anything huge is not rsasim's and is not read.
-    if !meta.is_file() || meta.len() > 64 << 20 {
-        return false;
-    }
-    let Ok(bytes) = std::fs::read(file) else {
-        return false;
-    };
-    let text = String::from_utf8_lossy(&bytes);
-    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
-    serde_json::from_str::<crate::output::Measured>(text)
-        .is_ok_and(|m| m.software.starts_with(pipeline::SOFTWARE_PREFIX))
+    std::fs::symlink_metadata(file).is_err()
+        || crate::output::measured::written_by_reference_program(file)
 }
 
 /// Reconstructs every run folder of `out` and writes the results beside its images, under

@@ -49,7 +49,7 @@ pub struct Methods {
 
 /// What `software` of every results file rsasim writes starts with; a results file whose
 /// `software` does not is another program's.
-pub const SOFTWARE_PREFIX: &str = "rsasim reconstruct ";
+pub const SOFTWARE_PREFIX: &str = crate::output::measured::REFERENCE_SOFTWARE_PREFIX;
 
 /// The software's name in the results file: `rsasim reconstruct <version> (<calibration>,
 /// <model>)`, e.g. `rsasim reconstruct 0.1.0 (dlt, markers)`; `model` is the model method's

@@ -406,22 +406,9 @@ pub fn foreign_files(dir: &Path) -> Vec<String> {
 
 /// Whether `file` (named `name`) is results written by rsasim's reference program.
 fn own_results(file: &Path, name: &str) -> bool {
-    if !(name.starts_with("measured-rsasim") && name.ends_with(".json")) {
-        return false;
-    }
-    let Ok(f) = std::fs::File::open(file) else {
-        return false;
-    };
-    let mut text = Vec::new();
-    if std::io::Read::read_to_end(&mut std::io::Read::take(f, 64 * 1024 * 1024), &mut text).is_err()
-    {
-        return false;
-    }
-    serde_json::from_slice::<serde_json::Value>(&text).is_ok_and(|v| {
-        v.get("software")
-            .and_then(|s| s.as_str())
-            .is_some_and(|s| s.starts_with("rsasim"))
-    })
+    name.starts_with("measured-rsasim")
+        && name.ends_with(".json")
+        && crate::output::measured::written_by_reference_program(file)
 }
 
 /// `Ok` when `dir` holds the report marker, or only files an earlier `rsasim evaluate` wrote.
@@ -511,7 +498,7 @@ mod tests {
         // rsasim's own later additions: reference results, a report folder, a lock file.
         std::fs::write(
             dir.join("runs/n0-r00/measured-rsasim-dlt-markers.json"),
-            r#"{"software": "rsasim reconstruct 0.2.0 (dlt, markers)"}"#,
+            r#"{"format": "rsasim-measured/1", "run": "n0-r00", "software": "rsasim reconstruct 0.2.0 (dlt, markers)"}"#,
         )
         .unwrap();
         std::fs::create_dir(dir.join("report-x")).unwrap();
@@ -523,7 +510,7 @@ mod tests {
         std::fs::write(dir.join("runs/n0-r00/measured.json"), "{}").unwrap();
         std::fs::write(
             dir.join("runs/n0-r00/measured-rsasim-x.json"),
-            r#"{"software": "MyRSA"}"#,
+            r#"{"format": "rsasim-measured/1", "run": "n0-r00", "software": "MyRSA"}"#,
         )
         .unwrap();
         assert_eq!(
