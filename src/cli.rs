@@ -48,6 +48,11 @@ pub struct RunArgs {
     /// ranges). DIR must lie outside the --out folder. Score with `rsasim evaluate OUT --truth DIR`.
     #[arg(long, value_name = "DIR")]
     pub truth_dir: Option<PathBuf>,
+    /// Also write a picture of every image for people: `png` puts `<exposure>-<detector>.png`
+    /// (8-bit, windowed to the 0.5–99.5th percentile, at most 1024 px on its longer side) beside
+    /// each image, listed in the manifest. Previews are never evidence: score the TIFF/EXR.
+    #[arg(long, value_name = "FORMAT", value_parser = ["png"])]
+    pub preview: Option<String>,
     /// What the scenario may read and use beyond the defaults.
     #[command(flatten)]
     pub allow: AllowArgs,

@@ -64,7 +64,7 @@ impl Cost {
     /// Estimates the cost of `s` with its built phantoms, for `threads` worker threads.
     pub fn estimate(s: &Scenario, models: &[PhantomModel], threads: usize) -> Cost {
         let threads = threads.max(1) as u64;
-        let runs = s.protocol.noise_levels.len() as u64 * u64::from(s.protocol.runs_per_level);
+        let runs = s.levels().len() as u64 * u64::from(s.protocol.runs_per_level);
         let per_run_images = (s.exposures.len() * s.detectors.len()) as u64;
         let images = runs.saturating_mul(per_run_images);
         let image_bytes: Vec<(ImageFormat, u64)> = s
@@ -119,8 +119,25 @@ impl Cost {
             .map(|d| u64::from(d.pixels[0]) * u64::from(d.pixels[1]))
             .max()
             .unwrap_or(0);
+        // Attenuation mode also holds a path-length image (f64) per material in use, the
+        // fluence, the metal map and the response's buffers (8 bytes each per pixel).
+        let per_pixel = if s.imaging.is_attenuation() {
+            let materials = models
+                .iter()
+                .flat_map(|m| {
+                    m.volumes
+                        .iter()
+                        .filter_map(|v| v.material.as_deref())
+                        .chain((!m.markers.is_empty()).then_some(m.bead_material.as_str()))
+                })
+                .collect::<std::collections::BTreeSet<_>>()
+                .len() as u64;
+            BYTES_PER_PIXEL_IN_FLIGHT + 8 * (materials + 4)
+        } else {
+            BYTES_PER_PIXEL_IN_FLIGHT
+        };
         let in_flight = largest_image
-            .saturating_mul(BYTES_PER_PIXEL_IN_FLIGHT)
+            .saturating_mul(per_pixel)
             .saturating_mul(threads.min(runs.max(1)));
         let mesh_memory: u64 = models
             .iter()
@@ -225,9 +242,9 @@ impl Cost {
                 loc.error(
                     root.key("protocol").key("runs_per_level"),
                     format!(
-                        "the protocol has {} runs ({} noise levels × {} runs per level), more than the cap of {MAX_RUNS}",
+                        "the protocol has {} runs ({} levels × {} runs per level), more than the cap of {MAX_RUNS}",
                         self.runs,
-                        s.protocol.noise_levels.len(),
+                        s.levels().len(),
                         s.protocol.runs_per_level
                     ),
                 )

@@ -1,4 +1,5 @@
 //! rsasim: a Radio Stereometric Analysis simulator.
+pub mod attenuation;
 pub mod cost;
 pub mod diagnostic;
 pub mod evaluate;

@@ -62,7 +62,8 @@ fn main() -> ExitCode {
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         None => {
             let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario, &cli.run.allow.into()).and_then(|plan| {
+            prepare(&scenario, &cli.run.allow.into()).and_then(|mut plan| {
+                plan.previews = cli.run.preview.is_some();
                 run(
                     &plan,
                     cli.run.out,

@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
+use crate::attenuation::{self, Setup};
 use crate::cost::{self, Cost};
 use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::expand::{self, Run};
@@ -15,7 +16,7 @@ use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};
-use crate::output::exr::{ExrAttr, encode_exr_with};
+use crate::output::exr::{ExrAttr, encode_exr_channels, encode_exr_with};
 use crate::output::tiff::encode_tiff;
 use crate::output::{
     self, FileRef, ImageTruth, ImagesBinding, Layout, Manifest, ManifestFile, ProjectedMarker,
@@ -35,6 +36,8 @@ pub struct Checked {
     pub loaded: LoadedScenario,
     /// Every phantom in its local frame.
     pub models: Vec<PhantomModel>,
+    /// Attenuation mode: materials, spectrum and detector resolved.
+    pub setup: Option<Setup>,
     /// What the simulation will write and use.
     pub cost: Cost,
     /// Warnings from every stage (errors stop preparation).
@@ -47,6 +50,10 @@ pub struct Plan {
     pub loaded: LoadedScenario,
     /// Every phantom in its local frame.
     pub models: Vec<PhantomModel>,
+    /// Attenuation mode: materials, spectrum and detector resolved.
+    pub setup: Option<Setup>,
+    /// Also write an 8-bit PNG preview beside every image (`--preview png`).
+    pub previews: bool,
     /// Every run of the protocol.
     pub runs: Vec<Run>,
     /// Warnings from every stage (errors stop preparation).
@@ -84,6 +91,11 @@ pub fn check(path: &Path, allow: &Allowances) -> Result<Checked, Vec<Diagnostic>
 /// [`check`] for a scenario already loaded (e.g. from text).
 pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked, Vec<Diagnostic>> {
     let (models, mesh_warnings) = phantom::build_with_warnings(&loaded)?;
+    let setup = if loaded.scenario.imaging.is_attenuation() {
+        Some(Setup::build(&loaded, &models)?)
+    } else {
+        None
+    };
     let cost = Cost::estimate(&loaded.scenario, &models, rayon::current_num_threads());
     let errors = cost.check(
         &loaded.scenario,
@@ -94,7 +106,12 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
     if !errors.is_empty() {
         return Err(errors);
     }
-    let findings = expand::check_geometry(&loaded, &models);
+    let mut findings = expand::check_geometry(&loaded, &models);
+    if let Some(setup) = &setup {
+        if !findings.iter().any(Diagnostic::is_error) {
+            findings.extend(attenuation::check::check_runs(&loaded, &models, setup));
+        }
+    }
     let (errors, warnings): (Vec<_>, Vec<_>) = findings.into_iter().partition(Diagnostic::is_error);
     if !errors.is_empty() {
         return Err(errors);
@@ -105,6 +122,7 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
     Ok(Checked {
         loaded,
         models,
+        setup,
         cost,
         warnings: all_warnings,
     })
@@ -133,6 +151,8 @@ impl From<Checked> for Plan {
         Plan {
             loaded: c.loaded,
             models: c.models,
+            setup: c.setup,
+            previews: false,
             runs,
             warnings: c.warnings,
             cost: c.cost,
@@ -200,13 +220,13 @@ pub fn simulate(
     let per_run: Vec<RunFiles> = plan
         .runs
         .par_iter()
-        .map(|run| write_run(s, &plan.models, &bvhs, run, root, truth_root, progress))
+        .map(|run| write_run(plan, &bvhs, run, root, truth_root, progress))
         .collect::<std::io::Result<_>>()?;
     let image_files = per_run.iter().map(|r| r.images.len()).sum();
     let mut truth_files = Vec::new();
     for r in per_run {
         files.extend(r.images);
-        truth_files.push(r.truth);
+        truth_files.extend(r.truth);
     }
     let mut manifest = new_manifest(plan, Vec::new());
     match truth_root {
@@ -448,8 +468,12 @@ pub fn nominal_scenario_text(resolved: &Scenario) -> String {
 /// The files one run wrote: its images (all formats) and its `truth.json`.
 struct RunFiles {
     images: Vec<ManifestFile>,
-    truth: ManifestFile,
+    /// `truth.json` and the path-length layers.
+    truth: Vec<ManifestFile>,
 }
+
+/// Longer side of a PNG preview, pixels.
+pub const PREVIEW_MAX_SIDE_PX: u32 = 1024;
 
 /// One noisy binary-mode image: the clean projection ([`trace::render_binary`]) and the noise
 /// field ([`noise::noise_field`]) computed at the same time on the rayon pool, then overlaid.
@@ -474,18 +498,23 @@ pub fn noisy_image(
 
 /// One run folder: every image in every format, and `truth.json` (in `truth_root` when given).
 fn write_run(
-    s: &Scenario,
-    models: &[PhantomModel],
+    plan: &Plan,
     bvhs: &[Option<Arc<MeshBvh>>],
     run: &Run,
     root: &Path,
     truth_root: Option<&Path>,
     progress: &(dyn Fn() + Sync),
 ) -> std::io::Result<RunFiles> {
+    let s = &plan.loaded.scenario;
+    let models = &plan.models[..];
     let dir = root.join("runs").join(&run.id);
     std::fs::create_dir_all(&dir)?;
     let mut files = Vec::new();
     let mut images = Vec::new();
+    let mut truth_extra = Vec::new();
+    let truth_root = truth_root.unwrap_or(root);
+    let truth_dir = truth_root.join("runs").join(&run.id);
+    std::fs::create_dir_all(&truth_dir)?;
     for exposure in &run.exposures {
         let in_beam: Vec<usize> = exposure
             .phantoms
@@ -510,7 +539,27 @@ fn write_run(
                     pose: state.pose(),
                 });
             }
+            for v in &models[pi].volumes {
+                if let phantom::VolumeShape::EllipticCylinder {
+                    radii_mm,
+                    half_length_mm,
+                } = v.shape
+                {
+                    objects.push(Object::EllipticCylinder {
+                        pose: state.pose(),
+                        radii_mm,
+                        half_length_mm,
+                    });
+                }
+            }
         }
+        let parts = match &plan.setup {
+            Some(setup) => Some(
+                attenuation::parts(s, setup, models, bvhs, run, exposure)
+                    .map_err(|(_, e)| std::io::Error::other(e))?,
+            ),
+            None => None,
+        };
         for det in &run.detectors {
             let frame = det.frame();
             let source = run.source_of(det);
@@ -521,7 +570,40 @@ fn write_run(
                 &exposure.id,
                 &det.id,
             );
-            let pixels = noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key);
+            let (pixels, visibility, saturated) = match (&plan.setup, &parts) {
+                (Some(setup), Some(parts)) => {
+                    let image = attenuation::render(
+                        setup,
+                        parts,
+                        &frame,
+                        source,
+                        run.exposure_factor.unwrap_or(1.0),
+                        det.i_max(),
+                        &key,
+                        s.imaging.path_length_layers,
+                    )
+                    .map_err(|e| {
+                        std::io::Error::other(format!(
+                            "run {}, exposure {}, detector {}: {e}",
+                            run.id, exposure.id, det.id
+                        ))
+                    })?;
+                    if let Some(lengths) = &image.lengths_mm {
+                        let name = format!("{}-{}-pathlength.exr", exposure.id, det.id);
+                        let bytes = path_length_exr(setup, lengths, det, s)?;
+                        truth_extra.push((
+                            name.clone(),
+                            manifest_entry(truth_root, &truth_dir.join(&name), &bytes)?,
+                        ));
+                    }
+                    (image.pixels, Some(image.beads), Some(image.saturated as u64))
+                }
+                _ => (
+                    noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key),
+                    None,
+                    None,
+                ),
+            };
 
             let stem = format!("{}-{}", exposure.id, det.id);
             let mut refs = Vec::new();
@@ -535,21 +617,32 @@ fn write_run(
                 });
                 files.push(entry);
             }
+            if plan.previews {
+                let name = format!("{stem}.png");
+                let [w, h] = det.pixels;
+                let png = output::preview::preview_png(&pixels, w, h, PREVIEW_MAX_SIDE_PX);
+                files.push(manifest_entry(root, &dir.join(&name), &png)?);
+            }
             let markers = in_beam
                 .iter()
                 .flat_map(|&pi| {
                     let ph = &run.phantoms[pi];
-                    ph.markers.iter().map(move |m| (ph, m))
+                    ph.markers.iter().enumerate().map(move |(bi, m)| (pi, ph, bi, m))
                 })
-                .map(|(ph, m)| {
+                .map(|(pi, ph, bi, m)| {
                     let uv = frame
                         .project(source, m.position_mm)
                         .expect("checked: beads lie between source and detector");
+                    let seen = visibility
+                        .as_ref()
+                        .and_then(|v| v.iter().find(|b| b.phantom == pi && b.bead == bi));
                     ProjectedMarker {
                         phantom: ph.id.clone(),
                         id: m.id.clone(),
                         pixel: [uv.x, uv.y],
                         inside: frame.contains_pixel(uv),
+                        occluded: seen.map(|b| b.occluded),
+                        metal_fraction: seen.map(|b| b.metal_fraction),
                     }
                 })
                 .collect();
@@ -558,6 +651,14 @@ fn write_run(
                 detector: det.id.clone(),
                 files: refs,
                 markers,
+                saturated_pixels: saturated,
+                path_lengths: truth_extra
+                    .last()
+                    .filter(|(n, _)| n == &format!("{stem}-pathlength.exr"))
+                    .map(|(n, e)| FileRef {
+                        path: n.clone(),
+                        sha256: e.sha256.clone(),
+                    }),
             });
             progress();
         }
@@ -569,18 +670,54 @@ fn write_run(
         run: run.clone(),
         images,
     };
-    let truth_root = truth_root.unwrap_or(root);
-    let truth_dir = truth_root.join("runs").join(&run.id);
-    std::fs::create_dir_all(&truth_dir)?;
     let truth = manifest_entry(
         truth_root,
         &truth_dir.join("truth.json"),
         &json_bytes(&truth),
     )?;
+    let mut truth = vec![truth];
+    truth.extend(truth_extra.into_iter().map(|(_, e)| e));
     Ok(RunFiles {
         images: files,
         truth,
     })
+}
+
+/// The path-length truth of one image: one EXR channel `pathlength_mm.<material>` per material
+/// in use (f32, mm, net of nesting), ZIP-compressed.
+fn path_length_exr(
+    setup: &Setup,
+    lengths: &[Vec<f64>],
+    det: &expand::DetectorState,
+    s: &Scenario,
+) -> std::io::Result<Vec<u8>> {
+    let names: Vec<String> = setup
+        .names
+        .iter()
+        .map(|n| format!("pathlength_mm.{n}"))
+        .collect();
+    let values: Vec<Vec<f32>> = lengths
+        .iter()
+        .map(|l| l.iter().map(|&x| x as f32).collect())
+        .collect();
+    let channels: Vec<(&str, &[f32])> = names
+        .iter()
+        .map(String::as_str)
+        .zip(values.iter().map(Vec::as_slice))
+        .collect();
+    let [w, h] = det.pixels;
+    encode_exr_channels(
+        w,
+        h,
+        &channels,
+        &[
+            ("rsasim_scenario", ExrAttr::Text(s.name.clone())),
+            ("rsasim_detector", ExrAttr::Text(det.id.clone())),
+            ("rsasim_program", ExrAttr::Text(output::program())),
+        ],
+        s.output.exr_compression,
+    )
+    .map_err(std::io::Error::other)
 }
 
 fn encode_image(
@@ -594,7 +731,7 @@ fn encode_image(
     let [w, h] = det.pixels;
     match format {
         ImageFormat::Tiff => {
-            let description = format!(
+            let mut description = format!(
                 "rsasim scenario={} run={} noise_level={} exposure={exposure} detector={} pixel_pitch_mm={}x{} bpp={}",
                 s.name,
                 run.id,
@@ -604,6 +741,9 @@ fn encode_image(
                 det.pixel_pitch_mm[1],
                 det.bpp
             );
+            if let Some(f) = run.exposure_factor {
+                description += &format!(" imaging=attenuation exposure_factor={f}");
+            }
             encode_tiff(
                 w,
                 h,
@@ -633,6 +773,11 @@ fn encode_image(
                 ("rsasim_bpp", ExrAttr::I32(det.bpp as i32)),
                 ("rsasim_program", ExrAttr::Text(output::program())),
             ];
+            let mut attrs = attrs.to_vec();
+            if let Some(f) = run.exposure_factor {
+                attrs.push(("rsasim_imaging", ExrAttr::Text("attenuation".into())));
+                attrs.push(("rsasim_exposure_factor", ExrAttr::F64(f)));
+            }
             encode_exr_with(w, h, &values, &attrs, s.output.exr_compression)
                 .expect("in-memory EXR encoding of a valid image")
         }

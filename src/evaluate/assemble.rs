@@ -96,12 +96,13 @@ pub fn assemble(
     Vec<Excluded>,
     usize,
 ) {
-    let mut levels: Vec<(u32, f64)> = runs
+    let mut levels: Vec<(u32, f64, Option<f64>)> = runs
         .iter()
         .map(|r| {
             (
                 r.truth.truth.run.noise_level_index,
                 r.truth.truth.run.noise_level,
+                r.truth.truth.run.exposure_factor,
             )
         })
         .collect();
@@ -290,8 +291,9 @@ pub fn assemble(
         table.rows = levels
             .iter()
             .enumerate()
-            .map(|(l, &(_, noise_level))| Row {
+            .map(|(l, &(_, noise_level, exposure_factor))| Row {
                 noise_level,
+                exposure_factor,
                 cells: s
                     .values
                     .iter()

@@ -315,15 +315,28 @@ fn default_results_name(
 
 /// Human-readable lines describing the set-up, for the report header.
 fn summary(s: &scenario::Scenario, runs: usize) -> Vec<String> {
+    let levels = s.levels();
+    let (what, shown): (&str, Vec<String>) = if s.imaging.is_attenuation() {
+        (
+            "exposure level(s)",
+            levels
+                .iter()
+                .map(|l| format!("×{}", l.exposure_factor.unwrap_or(1.0)))
+                .collect(),
+        )
+    } else {
+        (
+            "noise level(s)",
+            levels
+                .iter()
+                .map(|l| format!("{}%", l.noise_level * 100.0))
+                .collect(),
+        )
+    };
     let mut lines = vec![format!(
-        "Protocol: {} noise level(s) ({}) × {} run(s) = {runs} runs; seed {}",
-        s.protocol.noise_levels.len(),
-        s.protocol
-            .noise_levels
-            .iter()
-            .map(|l| format!("{}%", l * 100.0))
-            .collect::<Vec<_>>()
-            .join(", "),
+        "Protocol: {} {what} ({}) × {} run(s) = {runs} runs; seed {}",
+        levels.len(),
+        shown.join(", "),
         s.protocol.runs_per_level,
         s.seed
     )];
@@ -343,6 +356,12 @@ fn summary(s: &scenario::Scenario, runs: usize) -> Vec<String> {
             scenario::PhantomShape::Mesh(m) => {
                 format!("mesh {}, {} bead(s)", m.file, m.beads.len())
             }
+            scenario::PhantomShape::EllipticCylinder(c) => format!(
+                "elliptic cylinder {}×{} mm, {} mm long",
+                2.0 * c.radii_mm[0],
+                2.0 * c.radii_mm[1],
+                c.length_mm
+            ),
         };
         lines.push(format!("Phantom {}: {what}", p.id));
     }

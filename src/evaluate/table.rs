@@ -39,11 +39,15 @@ pub struct Column {
     pub unit: String,
 }
 
-/// The cells of one noise level.
+/// The cells of one level of the protocol (a noise level, or an exposure level in attenuation
+/// mode).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Row {
-    /// Noise level as a fraction of I_max.
+    /// Noise level as a fraction of I_max (0 in attenuation mode).
     pub noise_level: f64,
+    /// Attenuation mode: the level's factor on the exposure.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exposure_factor: Option<f64>,
     /// One cell per column of every group, left to right; `None` where no run measured it.
     pub cells: Vec<Option<Cell>>,
 }
@@ -102,4 +106,30 @@ pub struct Report {
     pub mtpm: Option<Table>,
     /// ISO 5725-2 analysis per parameter, noise levels as groups.
     pub group_analyses: Vec<GroupAnalysis>,
+}
+
+impl Row {
+    /// The level as shown in reports: `45.0%` (noise) or `×0.25` (exposure).
+    pub fn level_text(&self) -> String {
+        match self.exposure_factor {
+            Some(f) => super::report::format_exposure(f),
+            None => super::report::format_noise(self.noise_level),
+        }
+    }
+
+    /// The level as a number for plots: the noise level or the exposure factor.
+    pub fn level_value(&self) -> f64 {
+        self.exposure_factor.unwrap_or(self.noise_level)
+    }
+}
+
+impl Table {
+    /// What the levels of this table are: `Noise` or `Exposure`.
+    pub fn level_heading(&self) -> &'static str {
+        if self.rows.iter().any(|r| r.exposure_factor.is_some()) {
+            "Exposure"
+        } else {
+            "Noise"
+        }
+    }
 }

@@ -109,14 +109,14 @@ pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel]) -> Vec<D
         .map(|m| m.mesh.as_ref().map(|mesh| MeshBvh::new(mesh)))
         .collect();
     let per_level = u64::from(s.protocol.runs_per_level);
-    let total = s.protocol.noise_levels.len() as u64 * per_level;
+    let levels = s.levels();
+    let total = levels.len() as u64 * per_level;
     let detectors = s.detectors.len();
     let findings = (0..total)
         .into_par_iter()
         .map(|i| {
             let (n, r) = (i / per_level.max(1), (i % per_level.max(1)) as u32);
-            let level = s.protocol.noise_levels[n as usize];
-            let run = expand_run(s, models, n as u32, level, r);
+            let run = expand_run(s, models, n as u32, levels[n as usize], r);
             check_run(loaded, models, &bvhs, &run, i)
         })
         .reduce(|| Findings::new(models, detectors), Findings::merge);
@@ -239,7 +239,7 @@ fn bead_key(loaded: &LoadedScenario, pi: usize, k: usize) -> KeyPath {
     match loaded.scenario.phantoms[pi].shape() {
         PhantomShape::Beads(_) => p.key("beads").index(k).key("id"),
         PhantomShape::Mesh(_) => p.key("mesh").key("beads").index(k).key("id"),
-        PhantomShape::CalibrationBox(_) => p.key("id"),
+        PhantomShape::CalibrationBox(_) | PhantomShape::EllipticCylinder(_) => p.key("id"),
     }
 }
 

@@ -27,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::geometry::{Pose, rotation_xyz_deg};
 use crate::phantom::PhantomModel;
 use crate::random;
-use crate::scenario::{PoseRange, Scenario};
+use crate::scenario::{Level, PoseRange, Scenario};
 
 /// The label of the geometry stream of run `run_index` of noise level `level_index`.
 pub fn geometry_stream_label(seed: u64, level_index: u32, run_index: u32) -> String {
@@ -47,11 +47,10 @@ pub fn expand(s: &Scenario, models: &[PhantomModel]) -> Vec<Run> {
 /// Every run of the protocol in the order of [`expand`], each built only when asked for: memory
 /// stays flat however many runs the protocol has.
 pub fn runs<'a>(s: &'a Scenario, models: &'a [PhantomModel]) -> impl Iterator<Item = Run> + 'a {
-    s.protocol
-        .noise_levels
-        .iter()
+    s.levels()
+        .into_iter()
         .enumerate()
-        .flat_map(move |(n, &level)| {
+        .flat_map(move |(n, level)| {
             (0..s.protocol.runs_per_level).map(move |r| expand_run(s, models, n as u32, level, r))
         })
 }
@@ -61,7 +60,7 @@ pub fn expand_run(
     s: &Scenario,
     models: &[PhantomModel],
     level_index: u32,
-    level: f64,
+    level: Level,
     run_index: u32,
 ) -> Run {
     let label = geometry_stream_label(s.seed, level_index, run_index);
@@ -82,11 +81,12 @@ pub fn expand_run(
         .iter()
         .map(|d| draw_pose(&mut rng, d.position_mm, d.rotation_deg, &d.randomize))
         .collect();
-    let phantoms: Vec<Pose> = s
+    let drawn: Vec<Pose> = s
         .phantoms
         .iter()
         .map(|p| draw_pose(&mut rng, p.position_mm, p.rotation_deg, &p.randomize))
         .collect();
+    let phantoms = fixed_poses(s, drawn);
 
     let box_pose = s
         .phantoms
@@ -98,7 +98,8 @@ pub fn expand_run(
     Run {
         id: run_id(level_index, run_index),
         noise_level_index: level_index,
-        noise_level: level,
+        noise_level: level.noise_level,
+        exposure_factor: level.exposure_factor,
         run_index,
         geometry_stream: label,
         box_pose_in_scanner: box_pose,
@@ -175,6 +176,36 @@ fn draw_pose(
         position_mm: position,
         rotation: rotation_xyz_deg(rotation_deg) * rotation_xyz_deg(turn),
     }
+}
+
+/// Poses of phantoms fixed to another (`fixed_to`): the parent's pose composed with the
+/// phantom's nominal pose in the parent's frame (its own draws are taken and ignored, so the
+/// stream stays aligned). Validation guarantees the `fixed_to` chains end without a cycle.
+fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
+    let mut poses: Vec<Option<Pose>> = vec![None; drawn.len()];
+    fn resolve(s: &Scenario, drawn: &[Pose], poses: &mut [Option<Pose>], i: usize, depth: usize) -> Pose {
+        if let Some(p) = poses[i] {
+            return p;
+        }
+        let ph = &s.phantoms[i];
+        let parent = ph
+            .fixed_to
+            .as_ref()
+            .and_then(|id| s.phantoms.iter().position(|q| &q.id == id));
+        let pose = match parent {
+            Some(k) if depth < s.phantoms.len() => {
+                let parent_pose = resolve(s, drawn, poses, k, depth + 1);
+                parent_pose.compose(&Pose::from_position_euler_deg(ph.position_mm, ph.rotation_deg))
+            }
+            _ => drawn[i],
+        };
+        poses[i] = Some(pose);
+        pose
+    }
+    for i in 0..drawn.len() {
+        resolve(s, &drawn, &mut poses, i, 0);
+    }
+    poses.into_iter().map(|p| p.expect("every pose resolved")).collect()
 }
 
 #[cfg(test)]

@@ -18,8 +18,11 @@ pub struct Run {
     pub id: String,
     /// Index of the noise level in the protocol, 0-based.
     pub noise_level_index: u32,
-    /// Mean background noise as a fraction of I_max.
+    /// Mean background noise as a fraction of I_max (binary mode; 0 in attenuation mode).
     pub noise_level: f64,
+    /// Attenuation mode: the factor on the imaging exposure of this run's level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure_factor: Option<f64>,
     /// Index of the run within its noise level, 0-based.
     pub run_index: u32,
     /// The label whose SHA-256 keys this run's geometry stream (see the README, "Seeds").

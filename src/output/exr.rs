@@ -88,14 +88,39 @@ pub fn encode_exr_with(
     attributes: &[(&str, ExrAttr)],
     compression: ExrCompression,
 ) -> Result<Vec<u8>, String> {
+    encode_exr_channels(width, height, &[("Y", pixels)], attributes, compression)
+}
+
+/// Encodes several `f32` channels of one `width × height` image (each row-major) as one
+/// OpenEXR part, as [`encode_exr_with`] does for one channel. Channel names must be unique,
+/// non-empty Latin-1; the file lists them sorted byte-wise, as OpenEXR requires, and each scan
+/// line stores the channels in that order.
+pub fn encode_exr_channels(
+    width: u32,
+    height: u32,
+    channels: &[(&str, &[f32])],
+    attributes: &[(&str, ExrAttr)],
+    compression: ExrCompression,
+) -> Result<Vec<u8>, String> {
     if width == 0 || height == 0 || width > i32::MAX as u32 || height > i32::MAX as u32 {
         return Err(format!("EXR image size {width}×{height} is not supported"));
     }
-    if pixels.len() as u64 != u64::from(width) * u64::from(height) {
-        return Err(format!(
-            "EXR image is {width}×{height} but {} pixels were given",
-            pixels.len()
-        ));
+    let mut sorted: Vec<(&str, &[f32])> = channels.to_vec();
+    sorted.sort_by(|a, b| a.0.as_bytes().cmp(b.0.as_bytes()));
+    if sorted.is_empty() {
+        return Err("an EXR image needs at least one channel".into());
+    }
+    for (i, (name, pixels)) in sorted.iter().enumerate() {
+        if name.is_empty() || (i > 0 && sorted[i - 1].0 == *name) {
+            return Err(format!("EXR channel name {name:?} is empty or given twice"));
+        }
+        latin1("channel name", name)?;
+        if pixels.len() as u64 != u64::from(width) * u64::from(height) {
+            return Err(format!(
+                "EXR image is {width}×{height} but {} pixels were given",
+                pixels.len()
+            ));
+        }
     }
     let layer_attributes = layer_attributes(attributes)?;
     let (w, h) = (width as usize, height as usize);
@@ -108,13 +133,27 @@ pub fn encode_exr_with(
             blocks: Blocks::ScanLines,
             line_order: LineOrder::Increasing,
         },
-        AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new(
-            "Y",
-            FlatSamples::F32(Vec::new()),
-        )])),
+        AnyChannels::sort(SmallVec::from_vec(
+            sorted
+                .iter()
+                .map(|(name, _)| AnyChannel::new(*name, FlatSamples::F32(Vec::new())))
+                .collect(),
+        )),
     );
     let headers = Image::from_layer(layer).write().infer_meta_data();
-    let blocks = compress_blocks(&headers[0], w, h, pixels, compression)?;
+    // A scan line holds each channel's samples in turn (sorted order).
+    let interleaved: std::borrow::Cow<[f32]> = if sorted.len() == 1 {
+        std::borrow::Cow::Borrowed(sorted[0].1)
+    } else {
+        let mut v = Vec::with_capacity(w * h * sorted.len());
+        for y in 0..h {
+            for (_, pixels) in &sorted {
+                v.extend_from_slice(&pixels[y * w..(y + 1) * w]);
+            }
+        }
+        std::borrow::Cow::Owned(v)
+    };
+    let blocks = compress_blocks(&headers[0], w, sorted.len(), h, &interleaved, compression)?;
     let mut out = Cursor::new(Vec::with_capacity(
         blocks.iter().map(|b| b.len() + 8).sum::<usize>() + 4096,
     ));
@@ -159,10 +198,12 @@ pub const ZIP_LEVEL: u8 = 1;
 fn compress_blocks(
     header: &Header,
     w: usize,
+    channels: usize,
     h: usize,
     pixels: &[f32],
     compression: ExrCompression,
 ) -> Result<Vec<Vec<u8>>, String> {
+    let line = w * channels;
     let lines = compression.to_exr().scan_lines_per_block();
     let count = h.div_ceil(lines);
     (0..count)
@@ -170,7 +211,7 @@ fn compress_blocks(
         .map(|index| {
             let y = index * lines;
             let rows = lines.min(h - y);
-            let block = &pixels[y * w..(y + rows) * w];
+            let block = &pixels[y * line..(y + rows) * line];
             match compression {
                 ExrCompression::Zip | ExrCompression::Zips => Ok(zip_block(block, ZIP_LEVEL)),
                 ExrCompression::None | ExrCompression::Rle => {
@@ -353,6 +394,40 @@ mod tests {
             .non_parallel()
             .from_buffered(Cursor::new(bytes))
             .unwrap()
+    }
+
+    #[test]
+    fn several_channels_round_trip_by_name_for_every_compression() {
+        let (w, h) = (37u32, 21u32);
+        let n = (w * h) as usize;
+        let bone = awkward(n, 3);
+        let metal: Vec<f32> = (0..n).map(|i| i as f32 * 0.25).collect();
+        for compression in [
+            ExrCompression::None,
+            ExrCompression::Rle,
+            ExrCompression::Zip,
+            ExrCompression::Zips,
+        ] {
+            // Given out of order: the file sorts them.
+            let bytes = encode_exr_channels(
+                w,
+                h,
+                &[("pathlength_mm.metal", &metal), ("pathlength_mm.bone", &bone)],
+                &[],
+                compression,
+            )
+            .unwrap();
+            let img = read_back(&bytes);
+            let list = &img.layer_data.channel_data.list;
+            assert_eq!(list.len(), 2);
+            assert_eq!(list[0].name.to_string(), "pathlength_mm.bone");
+            assert_eq!(list[1].name.to_string(), "pathlength_mm.metal");
+            let got: Vec<f32> = list[0].sample_data.values_as_f32().collect();
+            assert!(same_bits(&got, &bone), "{compression:?}");
+            let got: Vec<f32> = list[1].sample_data.values_as_f32().collect();
+            assert!(same_bits(&got, &metal), "{compression:?}");
+        }
+        assert!(encode_exr_channels(w, h, &[("a", &metal), ("a", &bone)], &[], ExrCompression::Zip).is_err());
     }
 
     #[test]

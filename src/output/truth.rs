@@ -37,6 +37,13 @@ pub struct ImageTruth {
     pub files: Vec<FileRef>,
     /// Every bead of the exposure's phantoms, projected.
     pub markers: Vec<ProjectedMarker>,
+    /// Attenuation mode: pixels clamped at I_max (over-exposure).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saturated_pixels: Option<u64>,
+    /// Attenuation mode with `path_length_layers`: the EXR holding, per material, the path
+    /// length (mm) of every pixel's ray (channels `pathlength_mm.<material>`), beside truth.json.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path_lengths: Option<FileRef>,
 }
 
 /// A file and its SHA-256.
@@ -62,4 +69,11 @@ pub struct ProjectedMarker {
     pub pixel: [f64; 2],
     /// Whether the projected centre falls on the active area.
     pub inside: bool,
+    /// Attenuation mode: whether the ray to the pixel under the projected centre crosses metal
+    /// (a volume of density ≥ 4 g/cm³, beads aside), i.e. the bead is seen over the implant.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluded: Option<bool>,
+    /// Attenuation mode: the fraction of the bead's shadow pixels whose ray also crosses metal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metal_fraction: Option<f64>,
 }

@@ -58,6 +58,8 @@ mod tests {
             spacing_mm: [10.0, 20.0],
             bead_diameter_mm: 1.0,
             omit: vec![[2, 1]],
+            thickness_mm: None,
+            material: None,
         };
         let m = box_markers(&CalibrationBox {
             plates: vec![plate],

@@ -10,6 +10,7 @@ pub mod femoral;
 pub mod isosurface;
 pub mod mesh;
 pub mod mesh_io;
+pub mod volume;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -17,6 +18,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 pub use mesh::TriMesh;
+pub use volume::{Volume, VolumeShape};
 
 use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::scenario::{Bead, LoadedScenario, PhantomShape, PlateRole};
@@ -64,6 +66,10 @@ pub struct PhantomModel {
     /// The self-contained copy of the mesh file for an output's `phantoms/` (the bytes that
     /// were read and checked), for mesh phantoms.
     pub mesh_package: Option<mesh_io::MeshPackage>,
+    /// The solids of the phantom (its mesh, a cylinder, box plates with a thickness), local frame.
+    pub volumes: Vec<Volume>,
+    /// Material of the phantom's beads (attenuation mode). Default `tantalum`.
+    pub bead_material: String,
 }
 
 impl PhantomModel {
@@ -79,7 +85,12 @@ impl PhantomModel {
                 .iter()
                 .map(|v| (DVec3::from_array(v.map(f64::from)), 0.0))
         });
-        beads.chain(verts)
+        let corners = self
+            .volumes
+            .iter()
+            .flat_map(Volume::corners)
+            .map(|c| (c, 0.0));
+        beads.chain(verts).chain(corners)
     }
 }
 
@@ -116,6 +127,7 @@ pub fn build_with_warnings(
                 None,
             ),
             PhantomShape::CalibrationBox(b) => (calibration_box::box_markers(b), None, None, None),
+            PhantomShape::EllipticCylinder(_) => (Vec::new(), None, None, None),
             PhantomShape::Mesh(m) => {
                 let file = loaded.base_dir.join(&m.file);
                 let unit = m.unit_mm.unwrap_or_else(|| mesh_io::default_unit_mm(&file));
@@ -150,6 +162,20 @@ pub fn build_with_warnings(
                 }
             }
         };
+        let volumes = match ph.shape() {
+            PhantomShape::Mesh(_) => vec![Volume {
+                label: ph.id.clone(),
+                shape: VolumeShape::Mesh,
+                material: ph.material.clone(),
+            }],
+            PhantomShape::EllipticCylinder(c) => {
+                vec![volume::cylinder(&ph.id, c, ph.material.as_ref())]
+            }
+            PhantomShape::CalibrationBox(b) if loaded.scenario.imaging.is_attenuation() => {
+                volume::plates(&ph.id, b)
+            }
+            _ => Vec::new(),
+        };
         models.push(PhantomModel {
             id: ph.id.clone(),
             kind: ph.kind(),
@@ -157,6 +183,8 @@ pub fn build_with_warnings(
             mesh,
             mesh_file,
             mesh_package,
+            volumes,
+            bead_material: ph.bead_material.clone().unwrap_or_else(|| "tantalum".into()),
         });
     }
     if errors.is_empty() {
@@ -215,6 +243,8 @@ mod tests {
             mesh: Some(Arc::new(TriMesh::uv_sphere(10.0, 4, 4))),
             mesh_file: None,
             mesh_package: None,
+            volumes: Vec::new(),
+            bead_material: "tantalum".into(),
         };
         let pts: Vec<_> = model.extent_points().collect();
         assert_eq!(pts.len(), 1 + model.mesh.as_ref().unwrap().vertices.len());

@@ -54,7 +54,16 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         p.randomize = PoseRange::default();
     }
     let models = phantom::build(&loaded)?;
-    let nominal = expand_run(&nominal_scenario, &models, 0, 0.0, 0);
+    let nominal = expand_run(
+        &nominal_scenario,
+        &models,
+        0,
+        crate::scenario::Level {
+            noise_level: 0.0,
+            exposure_factor: None,
+        },
+        0,
+    );
     let mut beads = BTreeMap::new();
     for p in &loaded.scenario.phantoms {
         let name = if p.mesh.is_some() {

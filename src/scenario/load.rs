@@ -79,7 +79,8 @@ pub fn from_text(
     if !magnitude_errors.is_empty() {
         return Err(magnitude_errors);
     }
-    let diagnostics = validate(&scenario, &locator);
+    let mut diagnostics = validate(&scenario, &locator);
+    diagnostics.extend(super::imaging_check::check(&scenario, &locator));
     let (errors, warnings): (Vec<_>, Vec<_>) =
         diagnostics.into_iter().partition(Diagnostic::is_error);
     if !errors.is_empty() {

@@ -4,6 +4,8 @@
 //! [`Diagnostic`](crate::diagnostic::Diagnostic)s. Checks that need the mesh files or the
 //! geometry of every run happen in the later stages, which report through the same locator.
 
+mod imaging;
+mod imaging_check;
 mod lengths;
 mod load;
 mod magnitudes;
@@ -12,6 +14,44 @@ mod validate;
 
 pub use load::{LoadedScenario, from_text, hex, load};
 pub use model::*;
+
+/// One level of the protocol: the binary mode's noise level, or attenuation mode's exposure
+/// factor (then the noise level is 0: noise follows from the photons).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Level {
+    /// Background noise as a fraction of I_max (binary mode).
+    pub noise_level: f64,
+    /// Factor on the imaging exposure (attenuation mode).
+    pub exposure_factor: Option<f64>,
+}
+
+impl Scenario {
+    /// The protocol's levels in order: `noise_levels` in binary mode, `exposure_levels`
+    /// (default `[1.0]`) in attenuation mode.
+    pub fn levels(&self) -> Vec<Level> {
+        if self.imaging.is_attenuation() {
+            self.protocol
+                .exposure_levels
+                .clone()
+                .unwrap_or_else(|| vec![1.0])
+                .into_iter()
+                .map(|f| Level {
+                    noise_level: 0.0,
+                    exposure_factor: Some(f),
+                })
+                .collect()
+        } else {
+            self.protocol
+                .noise_levels
+                .iter()
+                .map(|&noise_level| Level {
+                    noise_level,
+                    exposure_factor: None,
+                })
+                .collect()
+        }
+    }
+}
 
 /// JSON Schema of the scenario file (draft 2020-12), generated from the records above.
 pub fn json_schema() -> serde_json::Value {
@@ -43,15 +83,23 @@ pub enum PhantomShape<'a> {
     CalibrationBox(&'a CalibrationBox),
     /// A mesh with optional beads.
     Mesh(&'a MeshPhantom),
+    /// An elliptic cylinder (a soft-tissue envelope).
+    EllipticCylinder(&'a EllipticCylinder),
 }
 
 impl Phantom {
     /// The phantom's shape. Validation guarantees exactly one of the three keys is set.
     pub fn shape(&self) -> PhantomShape<'_> {
-        match (&self.beads, &self.calibration_box, &self.mesh) {
-            (Some(b), None, None) => PhantomShape::Beads(b),
-            (None, Some(c), None) => PhantomShape::CalibrationBox(c),
-            (None, None, Some(m)) => PhantomShape::Mesh(m),
+        match (
+            &self.beads,
+            &self.calibration_box,
+            &self.mesh,
+            &self.elliptic_cylinder,
+        ) {
+            (Some(b), None, None, None) => PhantomShape::Beads(b),
+            (None, Some(c), None, None) => PhantomShape::CalibrationBox(c),
+            (None, None, Some(m), None) => PhantomShape::Mesh(m),
+            (None, None, None, Some(e)) => PhantomShape::EllipticCylinder(e),
             _ => panic!(
                 "phantom `{}` was not validated: it needs exactly one shape",
                 self.id
@@ -59,12 +107,14 @@ impl Phantom {
         }
     }
 
-    /// The kind as written in truth files: `beads`, `calibration_box` or `mesh`.
+    /// The kind as written in truth files: `beads`, `calibration_box`, `mesh` or
+    /// `elliptic_cylinder`.
     pub fn kind(&self) -> &'static str {
         match self.shape() {
             PhantomShape::Beads(_) => "beads",
             PhantomShape::CalibrationBox(_) => "calibration_box",
             PhantomShape::Mesh(_) => "mesh",
+            PhantomShape::EllipticCylinder(_) => "elliptic_cylinder",
         }
     }
 }

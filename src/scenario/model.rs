@@ -5,8 +5,12 @@
 //! in the doc comment and in the README. Coordinates are in the scanner (lab) frame, mm; angles
 //! are X-Y-Z Euler angles in degrees (`R = Rx(α)·Ry(β)·Rz(γ)`, the paper's decomposition).
 
+use std::collections::BTreeMap;
+
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+
+pub use super::imaging::*;
 
 /// A whole simulation: the radiological set-up, the phantoms, the protocol and the outputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -28,6 +32,12 @@ pub struct Scenario {
     /// Image formats and compression. Default: 16-bit TIFF (Deflate) and 32-bit float EXR.
     #[serde(default)]
     pub output: OutputOptions,
+    /// How images are formed: the paper's binary mode (the default) or attenuation mode.
+    #[serde(default, skip_serializing_if = "Imaging::is_default")]
+    pub imaging: Imaging,
+    /// Materials of your own, by name, for `material` keys (beside the shipped library).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub materials: BTreeMap<String, UserMaterial>,
     /// Point X-ray sources (tube foci).
     pub sources: Vec<Source>,
     /// Flat detectors; each pairs with one source to form a beamline.
@@ -50,6 +60,11 @@ pub struct Protocol {
     /// Runs per noise level, at least 1. Default 20 (the paper).
     #[serde(default = "Protocol::paper_runs_per_level")]
     pub runs_per_level: u32,
+    /// Attenuation mode only, instead of `noise_levels`: exposure levels as factors on the
+    /// imaging exposure (`photons_per_pixel` or `mas`), each > 0; image quality follows from the
+    /// photons. Default `[1.0]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exposure_levels: Option<Vec<f64>>,
 }
 
 impl Protocol {
@@ -67,6 +82,7 @@ impl Default for Protocol {
         Protocol {
             noise_levels: Self::paper_noise_levels(),
             runs_per_level: Self::paper_runs_per_level(),
+            exposure_levels: None,
         }
     }
 }
@@ -285,6 +301,13 @@ pub struct Plate {
     /// Default: none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub omit: Vec<[u32; 2]>,
+    /// Attenuation mode: thickness of the plate itself (a slab of `size_mm`, centred on the bead
+    /// plane, the beads embedded in it), mm. Default: no plate material, beads only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thickness_mm: Option<f64>,
+    /// Attenuation mode: the plate's material. Default `"pmma"` (acrylic).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
 }
 
 /// A calibration box (cage) built like real RSA cages: plates of bead grids.
@@ -310,7 +333,8 @@ pub struct MeshPhantom {
     pub beads: Vec<Bead>,
 }
 
-/// An object in the beam. Give exactly one of `beads`, `calibration_box` or `mesh`.
+/// An object in the beam. Give exactly one of `beads`, `calibration_box`, `mesh` or
+/// `elliptic_cylinder`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Phantom {
@@ -335,6 +359,39 @@ pub struct Phantom {
     /// A mesh (a prosthesis or bone model), optionally with beads.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<MeshPhantom>,
+    /// An elliptic cylinder along the local z axis, e.g. a soft-tissue envelope of the thigh
+    /// (attenuation mode; binary mode renders it as any object).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elliptic_cylinder: Option<EllipticCylinder>,
+    /// Attenuation mode: the material filling the mesh or cylinder (library name or a
+    /// `[materials]` name, e.g. `"cocr_f75"`, `"bone_cortical"`, `"soft_tissue"`). Required there
+    /// for meshes and cylinders.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
+    /// Attenuation mode: the material of this phantom's beads. Default `"tantalum"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bead_material: Option<String>,
+    /// Id of another phantom this one is rigidly fixed to: `position_mm` and `rotation_deg` are
+    /// then in that phantom's local frame, and it moves with it each run (it has no `randomize`
+    /// of its own). E.g. a bone model fixed to the implant it carries.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_to: Option<String>,
+    /// Attenuation mode: id of the phantom whose volume wholly contains this one's (a bone
+    /// inside the soft-tissue envelope, the cancellous core inside the cortex): where a ray
+    /// crosses both, this phantom's material replaces that one's. Checked on every pixel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inside: Option<String>,
+}
+
+/// An elliptic cylinder centred on the phantom's local origin, its axis along local z, with
+/// flat end caps.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EllipticCylinder {
+    /// Semi-axes along local x and y, mm.
+    pub radii_mm: [f64; 2],
+    /// Length along local z, mm (from −length/2 to +length/2).
+    pub length_mm: f64,
 }
 
 /// One image set: every detector takes one image of these phantoms together.

@@ -403,12 +403,13 @@ impl Checker<'_> {
             ph.beads.is_some(),
             ph.calibration_box.is_some(),
             ph.mesh.is_some(),
+            ph.elliptic_cylinder.is_some(),
         ];
         if shapes.iter().filter(|x| **x).count() != 1 {
             self.err(
                 p.clone(),
-                format!("phantom `{}` must have exactly one of `beads`, `calibration_box`, `mesh`", ph.id),
-                "add [[phantoms.beads]], [phantoms.calibration_box] or [phantoms.mesh] under this phantom",
+                format!("phantom `{}` must have exactly one of `beads`, `calibration_box`, `mesh`, `elliptic_cylinder`", ph.id),
+                "add [[phantoms.beads]], [phantoms.calibration_box], [phantoms.mesh] or [phantoms.elliptic_cylinder] under this phantom",
             );
             return;
         }
@@ -429,6 +430,11 @@ impl Checker<'_> {
                     self.positive(&p.key("mesh").key("unit_mm"), &[u], "unit_mm");
                 }
                 self.beads(&p.key("mesh").key("beads"), &m.beads);
+            }
+            PhantomShape::EllipticCylinder(e) => {
+                let path = p.key("elliptic_cylinder");
+                self.positive(&path.key("radii_mm"), &e.radii_mm, "cylinder semi-axis");
+                self.positive(&path.key("length_mm"), &[e.length_mm], "cylinder length");
             }
         }
     }

@@ -46,10 +46,12 @@ pub fn report() -> Report {
         rows: vec![
             Row {
                 noise_level: 0.0,
+                exposure_factor: None,
                 cells: vec![cell(&POSITIVE), cell(&NONE), cell(&NEGATIVE), cell(&[0.3])],
             },
             Row {
                 noise_level: 0.225,
+                exposure_factor: None,
                 cells: vec![
                     cell(&shifted(&NONE, 0.01)),
                     cell(&NONE),
@@ -75,10 +77,12 @@ pub fn report() -> Report {
         rows: vec![
             Row {
                 noise_level: 0.0,
+                exposure_factor: None,
                 cells: vec![cell(&NONE), cell(&NONE[..4])],
             },
             Row {
                 noise_level: 0.225,
+                exposure_factor: None,
                 cells: vec![cell(&shifted(&NONE, 0.03)), cell(&shifted(&NONE, -0.04))],
             },
         ],

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use super::markdown::unicode_minus_numbers;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, iso, mark, n_note, svg,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, iso, mark, n_note, svg,
     trueness_precision, unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
@@ -151,7 +151,11 @@ fn facts(s: &mut String, r: &Report) {
 
 /// A table with grouped headings; `cell` gives a cell's text and significance.
 fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Significance)) {
-    s.push_str("<table><thead>\n<tr><th rowspan=\"2\">Noise</th><th rowspan=\"2\">N</th>");
+    let _ = write!(
+        s,
+        "<table><thead>\n<tr><th rowspan=\"2\">{}</th><th rowspan=\"2\">N</th>",
+        table.level_heading()
+    );
     for g in &table.groups {
         let _ = write!(
             s,
@@ -177,7 +181,7 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
         let _ = write!(
             s,
             "<tr><th>{}</th><td>{n}</td>",
-            esc(&format_noise(row.noise_level))
+            esc(&row.level_text())
         );
         for (i, c) in row.cells.iter().enumerate() {
             let mut classes: Vec<&str> = Vec::new();
@@ -228,7 +232,13 @@ fn group_starts(table: &Table) -> Vec<usize> {
 
 /// One plot per parameter of `table`.
 fn plots(s: &mut String, table: &Table) {
-    let levels: Vec<f64> = table.rows.iter().map(|r| r.noise_level).collect();
+    let levels: Vec<f64> = table.rows.iter().map(|r| r.level_value()).collect();
+    let labels: Vec<String> = table.rows.iter().map(|r| r.level_text()).collect();
+    let axis = if table.level_heading() == "Exposure" {
+        svg::Axis::Exposure
+    } else {
+        svg::Axis::Noise
+    };
     s.push_str("<div class=\"plots\">\n");
     for (i, (g, c)) in columns(table).enumerate() {
         let cells: Vec<Option<&Cell>> = table
@@ -243,10 +253,11 @@ fn plots(s: &mut String, table: &Table) {
         };
         let _ = writeln!(
             s,
-            "<figure>{}<figcaption>{} ({}): trueness ± precision against noise level</figcaption></figure>",
-            svg::plot(&title, &c.unit, &levels, &cells),
+            "<figure>{}<figcaption>{} ({}): trueness ± precision against {}</figcaption></figure>",
+            svg::plot(&title, &c.unit, &levels, &labels, axis, &cells),
             esc(&title),
-            esc(&c.unit)
+            esc(&c.unit),
+            axis.noun()
         );
     }
     s.push_str("</div>\n");

@@ -2,7 +2,7 @@
 
 use std::fmt::Write;
 
-use super::{columns, confidence_text, format_noise, n_note, trueness_precision, usual_n};
+use super::{columns, confidence_text, n_note, trueness_precision, usual_n};
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
 
@@ -66,14 +66,14 @@ fn table_float(s: &mut String, table: &Table) {
             text(&g.label)
         );
     }
-    s.push_str(" \\\\\n\tNoise");
+    let _ = write!(s, " \\\\\n\t{}", table.level_heading());
     for (_, c) in columns(table) {
         let _ = write!(s, " & ${}$ ({})", c.latex, text(&c.unit));
     }
     s.push_str(" \\\\\n\t\\hline\\hline\n");
     for row in &table.rows {
         let usual = usual_n(row);
-        let _ = write!(s, "\t{}", text(&format_noise(row.noise_level)));
+        let _ = write!(s, "\t{}", text(&row.level_text()));
         for c in &row.cells {
             let _ = write!(
                 s,
@@ -123,7 +123,7 @@ fn n_caption(table: &Table) -> String {
                 .rows
                 .iter()
                 .zip(&ns)
-                .map(|(r, n)| format!("{}: {}", text(&format_noise(r.noise_level)), shown(*n)))
+                .map(|(r, n)| format!("{}: {}", text(&r.level_text()), shown(*n)))
                 .collect();
             format!("$N$ per noise level: {}.", parts.join(", "))
         }

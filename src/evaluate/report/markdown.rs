@@ -4,7 +4,7 @@ use std::fmt::Write;
 
 use super::iso;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, format_noise, mark, n_note,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, n_note,
     trueness_precision, unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
@@ -129,7 +129,7 @@ fn paper_cell(c: &Cell) -> (String, Significance) {
 
 /// A table: header row "Noise | N | group: label (unit) …", one row per noise level.
 fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Significance)) {
-    s.push_str("| Noise | N |");
+    let _ = write!(s, "| {} | N |", table.level_heading());
     for (g, c) in columns(table) {
         let group = if g.label.is_empty() {
             String::new()
@@ -144,7 +144,7 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
     for row in &table.rows {
         let usual = usual_n(row);
         let n = usual.map_or("—".to_string(), |n| n.to_string());
-        let _ = write!(s, "| {} | {n} |", format_noise(row.noise_level));
+        let _ = write!(s, "| {} | {n} |", row.level_text());
         for c in &row.cells {
             let _ = write!(
                 s,

@@ -28,7 +28,7 @@ pub use self::csv::{csv, csv_iso5725};
 pub use self::html::html;
 pub use self::latex::latex;
 pub use self::markdown::markdown;
-pub use self::number::{format_noise, format_number, unicode_minus};
+pub use self::number::{format_exposure, format_noise, format_number, unicode_minus};
 
 use super::stats::{Cell, Confidence, Sided, Significance};
 use super::table::{Column, ColumnGroup, Report, Row, Table};

@@ -46,6 +46,11 @@ pub fn format_noise(level: f64) -> String {
     format!("{:.1}%", level * 100.0)
 }
 
+/// An exposure level: `×0.25`, `×2` (at most three decimals, no trailing zeros).
+pub fn format_exposure(factor: f64) -> String {
+    format!("×{}", trimmed(factor, 3))
+}
+
 /// Replaces every ASCII hyphen-minus with the Unicode minus sign U+2212 (for HTML and Markdown).
 pub fn unicode_minus(s: &str) -> String {
     s.replace('-', "\u{2212}")
@@ -100,6 +105,8 @@ mod tests {
         assert_eq!(format_noise(0.225), "22.5%");
         assert_eq!(format_noise(0.0), "0.0%");
         assert_eq!(format_noise(0.45), "45.0%");
+        assert_eq!(format_exposure(0.125), "×0.125");
+        assert_eq!(format_exposure(2.0), "×2");
         assert_eq!(unicode_minus("-0.036"), "\u{2212}0.036");
         assert_eq!(trimmed(0.95 * 100.0, 4), "95");
         assert_eq!(trimmed(0.975, 4), "0.975");

@@ -4,7 +4,7 @@
 use std::fmt::Write;
 
 use super::html::esc;
-use super::{format_noise, unicode_minus};
+use super::unicode_minus;
 use crate::evaluate::stats::{Cell, Significance};
 
 const W: f64 = 330.0;
@@ -22,7 +22,42 @@ const BLACK: &str = "#222222";
 /// A plot of one parameter: points at (noise level, T) with error bars ±P, a dashed zero line,
 /// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
 /// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
-pub(crate) fn plot(title: &str, unit: &str, levels: &[f64], cells: &[Option<&Cell>]) -> String {
+/// What the x axis of a plot shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Axis {
+    /// Binary mode: noise levels, % of I_max.
+    Noise,
+    /// Attenuation mode: exposure levels, factors on the exposure.
+    Exposure,
+}
+
+impl Axis {
+    /// The axis in a sentence: "noise level" or "exposure level".
+    pub(crate) fn noun(self) -> &'static str {
+        match self {
+            Axis::Noise => "noise level",
+            Axis::Exposure => "exposure level",
+        }
+    }
+
+    fn title_html(self) -> &'static str {
+        match self {
+            Axis::Noise => {
+                "Noise level (% of I<tspan baseline-shift=\"sub\" font-size=\"8\">max</tspan>)"
+            }
+            Axis::Exposure => "Exposure level (factor on the exposure)",
+        }
+    }
+}
+
+pub(crate) fn plot(
+    title: &str,
+    unit: &str,
+    levels: &[f64],
+    labels: &[String],
+    axis: Axis,
+    cells: &[Option<&Cell>],
+) -> String {
     let points: Vec<(f64, &Cell)> = levels
         .iter()
         .zip(cells)
@@ -38,7 +73,8 @@ pub(crate) fn plot(title: &str, unit: &str, levels: &[f64], cells: &[Option<&Cel
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" \
 role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         esc(&format!(
-            "{title}: trueness ± precision ({unit}) against noise level"
+            "{title}: trueness ± precision ({unit}) against {}",
+            axis.noun()
         ))
     );
     let _ = write!(
@@ -69,7 +105,7 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         );
     }
     let mut seen: Vec<f64> = Vec::new();
-    for &level in levels {
+    for (&level, label) in levels.iter().zip(labels) {
         if seen.contains(&level) {
             continue;
         }
@@ -85,7 +121,7 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
             s,
             "<text x=\"{x:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>",
             base + 16.0,
-            esc(&format_noise(level))
+            esc(label)
         );
     }
     let zero = py(0.0);
@@ -99,9 +135,10 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
     }
     let _ = write!(
         s,
-        "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">Noise level (% of I<tspan baseline-shift=\"sub\" font-size=\"8\">max</tspan>)</text>",
+        "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>",
         LEFT + (W - LEFT - RIGHT) / 2.0,
-        H - 10.0
+        H - 10.0,
+        axis.title_html()
     );
     let (cx, cy) = (14.0, TOP + (H - TOP - BOTTOM) / 2.0);
     let _ = write!(
@@ -248,6 +285,10 @@ mod tests {
         assert_eq!(labels, ["−0.8", "−0.6", "−0.4", "−0.2", "0", "0.2"]);
     }
 
+    fn labels() -> Vec<String> {
+        [0.0, 0.225, 0.45].map(super::super::format_noise).to_vec()
+    }
+
     #[test]
     fn a_plot_is_deterministic_and_marks_significance() {
         let pos = Cell::from_residuals(&[1.0, 1.1, 0.9], &Confidence::default());
@@ -256,6 +297,8 @@ mod tests {
             "tube1 · x_r",
             "mm",
             &[0.0, 0.225, 0.45],
+            &labels(),
+            Axis::Noise,
             &[Some(&pos), None, Some(&one)],
         );
         assert_eq!(
@@ -264,6 +307,8 @@ mod tests {
                 "tube1 · x_r",
                 "mm",
                 &[0.0, 0.225, 0.45],
+                &labels(),
+                Axis::Noise,
                 &[Some(&pos), None, Some(&one)]
             )
         );

@@ -1,0 +1,56 @@
+//! The attenuation-mode checks of every run before anything is written: each bead lies wholly
+//! inside or outside every volume of its exposure, and never in two volumes that do not nest.
+//! (That nested volumes stay inside their outer volume is checked on every pixel while
+//! rendering, where the path lengths are known.)
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::diagnostic::{Diagnostic, KeyPath};
+use crate::expand;
+use crate::phantom::PhantomModel;
+use crate::scenario::LoadedScenario;
+use crate::trace::MeshBvh;
+
+use super::{Setup, parts};
+
+/// Most findings reported; the rest are counted.
+const MAX_FINDINGS: usize = 10;
+
+/// Every placement problem of every run, as errors at the bead's phantom.
+pub fn check_runs(loaded: &LoadedScenario, models: &[PhantomModel], setup: &Setup) -> Vec<Diagnostic> {
+    let s = &loaded.scenario;
+    let bvhs: Vec<Option<Arc<MeshBvh>>> = models
+        .iter()
+        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
+        .collect();
+    let runs: Vec<expand::Run> = expand::runs(s, models).collect();
+    let mut findings: Vec<(usize, String)> = runs
+        .par_iter()
+        .flat_map_iter(|run| {
+            run.exposures
+                .iter()
+                .filter_map(|e| parts(s, setup, models, &bvhs, run, e).err())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let total = findings.len();
+    findings.truncate(MAX_FINDINGS);
+    let mut out: Vec<Diagnostic> = findings
+        .into_iter()
+        .map(|(pi, message)| {
+            loaded
+                .locator
+                .error(KeyPath::root().key("phantoms").index(pi), message)
+                .with_help("move the bead, or the volume's mesh, so that the bead sits wholly inside or wholly outside it")
+        })
+        .collect();
+    if total > MAX_FINDINGS {
+        out.push(loaded.locator.error(
+            KeyPath::root().key("phantoms"),
+            format!("{} more bead placement problems in other runs", total - MAX_FINDINGS),
+        ));
+    }
+    out
+}

@@ -1,0 +1,184 @@
+//! Where a bead sits among the volumes: wholly inside, wholly outside, or across a surface.
+//! A bead's tantalum replaces the material of the innermost volume it lies in, so this decides
+//! which path length its chord is taken from.
+
+use glam::DVec3;
+
+use crate::phantom::TriMesh;
+
+/// A sphere against a solid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    /// The whole sphere lies inside.
+    Inside,
+    /// The sphere and the solid do not meet.
+    Outside,
+    /// The sphere crosses the solid's surface.
+    Across,
+}
+
+fn place(centre_inside: bool, distance_to_surface_mm: f64, radius_mm: f64) -> Placement {
+    if distance_to_surface_mm < radius_mm {
+        Placement::Across
+    } else if centre_inside {
+        Placement::Inside
+    } else {
+        Placement::Outside
+    }
+}
+
+/// A sphere (centre in the box's frame) against a box of half-sizes `h`, exactly.
+pub fn in_cuboid(centre: DVec3, radius_mm: f64, h: DVec3) -> Placement {
+    let a = centre.abs();
+    let inside = a.x <= h.x && a.y <= h.y && a.z <= h.z;
+    let distance = if inside {
+        (h - a).min_element()
+    } else {
+        (a - h).max(DVec3::ZERO).length()
+    };
+    place(inside, distance, radius_mm)
+}
+
+/// A sphere (centre in the cylinder's frame) against an elliptic cylinder on z with semi-axes
+/// `radii` and half-length `half_length`. Radially it compares the centre with the ellipses of
+/// semi-axes `radii ∓ r` (exact for a circle; for an ellipse whose curvature radius b²/a exceeds
+/// r, as any body envelope with a 1 mm bead, the shrunk ellipse lies within the inner parallel
+/// curve, so "inside" is never claimed wrongly).
+pub fn in_cylinder(centre: DVec3, radius_mm: f64, radii: [f64; 2], half_length: f64) -> Placement {
+    let e = |da: f64| {
+        let (a, b) = (radii[0] + da, radii[1] + da);
+        if a <= 0.0 || b <= 0.0 {
+            return f64::INFINITY;
+        }
+        (centre.x / a) * (centre.x / a) + (centre.y / b) * (centre.y / b)
+    };
+    let z = centre.z.abs();
+    if e(-radius_mm) <= 1.0 && z <= half_length - radius_mm {
+        Placement::Inside
+    } else if e(radius_mm) >= 1.0 || z >= half_length + radius_mm {
+        Placement::Outside
+    } else {
+        Placement::Across
+    }
+}
+
+/// A sphere (centre in the mesh's frame, mm) against a closed mesh: the centre's side by the
+/// parity of crossings of a ray (a fixed, irrational direction, so it misses edges and vertices
+/// of any practical mesh), the distance to the surface as the least distance to a triangle.
+pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
+    let dir = DVec3::new(0.577_215_664_901_532_9, 0.301_029_995_663_981_2, 0.759_134_453_1).normalize();
+    let mut crossings = 0u32;
+    let mut distance = f64::INFINITY;
+    let v = |i: u32| DVec3::from_array(mesh.vertices[i as usize].map(f64::from));
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(v);
+        if ray_hits(centre, dir, a, b, c) {
+            crossings += 1;
+        }
+        distance = distance.min(point_triangle_distance(centre, a, b, c));
+    }
+    place(crossings % 2 == 1, distance, radius_mm)
+}
+
+/// Whether the ray `o + t·d`, t > 0, crosses triangle abc (Möller–Trumbore, f64).
+fn ray_hits(o: DVec3, d: DVec3, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-300 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return false;
+    }
+    let q = s.cross(e1);
+    let w = d.dot(q) * inv;
+    if w < 0.0 || u + w > 1.0 {
+        return false;
+    }
+    e2.dot(q) * inv > 0.0
+}
+
+/// Least distance from `p` to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
+fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return (p - (a + ab * (d1 / (d1 - d3)))).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return (p - (a + ac * (d2 / (d2 - d6)))).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (p - (a + ab * v + ac * w)).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cuboid_placement_is_exact() {
+        let h = DVec3::new(10.0, 5.0, 4.0);
+        assert_eq!(in_cuboid(DVec3::ZERO, 0.5, h), Placement::Inside);
+        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 3.5), 0.5, h), Placement::Inside);
+        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 3.6), 0.5, h), Placement::Across);
+        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 4.5), 0.5, h), Placement::Outside);
+        // Off a corner: distance √(0.3²·3) ≈ 0.52 > 0.5.
+        assert_eq!(in_cuboid(h + DVec3::splat(0.3), 0.5, h), Placement::Outside);
+        assert_eq!(in_cuboid(h + DVec3::splat(0.2), 0.5, h), Placement::Across);
+    }
+
+    #[test]
+    fn cylinder_placement_for_a_circle_is_exact() {
+        let r = [20.0, 20.0];
+        assert_eq!(in_cylinder(DVec3::new(19.4, 0.0, 0.0), 0.5, r, 50.0), Placement::Inside);
+        assert_eq!(in_cylinder(DVec3::new(19.6, 0.0, 0.0), 0.5, r, 50.0), Placement::Across);
+        assert_eq!(in_cylinder(DVec3::new(20.6, 0.0, 0.0), 0.5, r, 50.0), Placement::Outside);
+        assert_eq!(in_cylinder(DVec3::new(0.0, 0.0, 49.6), 0.5, r, 50.0), Placement::Across);
+    }
+
+    #[test]
+    fn mesh_placement_matches_the_sphere_it_approximates() {
+        // A fine UV sphere of radius 10: its surface lies within 0.02 mm of the true sphere.
+        let m = TriMesh::uv_sphere(10.0, 64, 128);
+        assert_eq!(in_mesh(DVec3::new(0.0, 0.0, 0.0), 0.5, &m), Placement::Inside);
+        assert_eq!(in_mesh(DVec3::new(9.3, 0.0, 0.0), 0.5, &m), Placement::Inside);
+        assert_eq!(in_mesh(DVec3::new(9.8, 0.0, 0.0), 0.5, &m), Placement::Across);
+        assert_eq!(in_mesh(DVec3::new(0.0, 10.2, 0.0), 0.5, &m), Placement::Across);
+        assert_eq!(in_mesh(DVec3::new(0.0, 0.0, -11.0), 0.5, &m), Placement::Outside);
+        assert_eq!(in_mesh(DVec3::new(30.0, 0.0, 0.0), 0.5, &m), Placement::Outside);
+    }
+
+    #[test]
+    fn point_triangle_distance_covers_face_edge_and_vertex_regions() {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        assert!((point_triangle_distance(DVec3::new(0.2, 0.2, 3.0), a, b, c) - 3.0).abs() < 1e-15);
+        assert!((point_triangle_distance(DVec3::new(-1.0, -1.0, 0.0), a, b, c) - 2f64.sqrt()).abs() < 1e-15);
+        assert!((point_triangle_distance(DVec3::new(0.5, -2.0, 0.0), a, b, c) - 2.0).abs() < 1e-15);
+        assert!((point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), a, b, c) - 0.5f64.sqrt()).abs() < 1e-15);
+    }
+}

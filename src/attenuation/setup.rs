@@ -1,0 +1,253 @@
+//! The scenario's `[imaging]` resolved once into plain numbers: the materials in use (indexed),
+//! the spectrum after filtration (at most `max_energy_bins` bins), the linear attenuation of
+//! every material at every bin energy, and the detector's absorption per bin.
+
+use glam::DVec3;
+
+use crate::diagnostic::{Diagnostic, KeyPath};
+use crate::geometry::DetectorFrame;
+use crate::material::{self, Material};
+use crate::phantom::{PhantomModel, confine};
+use crate::response::{Beam, DetectorModel, Polarity, Response};
+use crate::scenario::{LoadedScenario, PolarityOption, ResponseKind, Scenario};
+use crate::spectrum::Spectrum;
+
+/// Largest spectrum file read, bytes.
+const MAX_SPECTRUM_FILE_BYTES: u64 = 4 * 1024 * 1024;
+
+/// Default `radiograph_range`: ln(S_open/S) shown white (about 0.1 % transmission).
+pub const DEFAULT_RADIOGRAPH_RANGE: f64 = 7.0;
+
+/// Default `white_level`: the open field reads this fraction of I_max.
+pub const DEFAULT_WHITE_LEVEL: f64 = 0.8;
+
+/// Everything attenuation mode needs besides the geometry of a run.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The materials in use, in first-use order (volumes, beads, then plates); indices below.
+    pub materials: Vec<Material>,
+    /// Bin centres, keV.
+    pub energies_kev: Vec<f64>,
+    /// Photons per bin after filtration: absolute (per mm² per mAs at 1000 mm) for a tube with
+    /// `mas`, otherwise normalised to a total of 1.
+    pub spectrum_photons: Vec<f64>,
+    /// Whether `spectrum_photons` is per mm² per mAs at 1000 mm (exposure given as `mas`).
+    pub per_mas: bool,
+    /// `photons_per_pixel` or `mas`, before the level's exposure factor.
+    pub exposure: f64,
+    /// `mu_per_mm[m][b]`: linear attenuation of material m at bin b, 1/mm.
+    pub mu_per_mm: Vec<Vec<f64>>,
+    /// Detector absorption per bin (1 for an ideal absorber).
+    pub efficiency: Vec<f64>,
+    /// Energy integrating or photon counting.
+    pub response: ResponseKind,
+    /// Digital units per keV or per photon; `None` = automatic (white level).
+    pub gain: Option<f64>,
+    /// Open-field fraction of I_max for the automatic gain.
+    pub white_level: f64,
+    /// Dark offset, digital units.
+    pub offset: f64,
+    /// Raw or radiograph, with its range.
+    pub polarity: Polarity,
+    /// Spectrum summary for reports and file headers: mean energy after filtration, keV.
+    pub mean_energy_kev: f64,
+    /// Material names by index (for messages and EXR layers).
+    pub names: Vec<String>,
+}
+
+impl Setup {
+    /// Resolves the imaging of `loaded` (attenuation mode) with its phantoms. Errors name the
+    /// scenario key.
+    pub fn build(loaded: &LoadedScenario, models: &[PhantomModel]) -> Result<Setup, Vec<Diagnostic>> {
+        let s = &loaded.scenario;
+        let im = &s.imaging;
+        let key = KeyPath::root().key("imaging");
+        let err = |path: KeyPath, message: String, help: &str| {
+            vec![loaded.locator.error(path, message).with_help(help)]
+        };
+        let spectrum = if let Some(e) = im.energy_kev {
+            Spectrum::monochromatic(e)
+        } else if let Some(t) = &im.tube {
+            let mut sp = Spectrum::tube(t.kvp, t.anode_angle_deg).map_err(|e| {
+                err(key.key("tube"), e, "kVp 40–150 (whole numbers), anode angles as listed in the README")
+            })?;
+            for f in &t.filtration {
+                let m = resolve(s, &f.material).expect("validated material");
+                sp = sp.filtered(|e| m.linear_attenuation_per_mm(e), f.thickness_mm);
+            }
+            sp
+        } else if let Some(file) = &im.spectrum_file {
+            read_spectrum(loaded, file).map_err(|(m, h)| err(key.key("spectrum_file"), m, &h))?
+        } else {
+            unreachable!("validated: one spectrum source");
+        };
+        let spectrum = spectrum.coarsened(im.max_bins());
+        if !(spectrum.total_photons() > 0.0) {
+            return Err(err(
+                key.clone(),
+                "no photon of the spectrum passes the filtration".into(),
+                "reduce the filtration",
+            ));
+        }
+        let per_mas = im.mas.is_some();
+        let total = spectrum.total_photons();
+        let spectrum_photons: Vec<f64> = if per_mas {
+            spectrum.photons.clone()
+        } else {
+            spectrum.photons.iter().map(|n| n / total).collect()
+        };
+        let (names, materials) = materials_in_use(s, models);
+        let mu_per_mm = materials
+            .iter()
+            .map(|m| spectrum.energies_kev.iter().map(|&e| m.linear_attenuation_per_mm(e)).collect())
+            .collect();
+        let efficiency = match &im.detector.scintillator {
+            Some(sc) => {
+                let m = resolve(s, &sc.material).expect("validated material");
+                spectrum
+                    .energies_kev
+                    .iter()
+                    .map(|&e| 1.0 - libm::exp(-m.linear_attenuation_per_mm(e) * sc.thickness_mm))
+                    .collect()
+            }
+            None => vec![1.0; spectrum.energies_kev.len()],
+        };
+        let d = &im.detector;
+        Ok(Setup {
+            materials,
+            mean_energy_kev: spectrum.mean_energy_kev(),
+            energies_kev: spectrum.energies_kev.clone(),
+            spectrum_photons,
+            per_mas,
+            exposure: im.photons_per_pixel.or(im.mas).expect("validated exposure"),
+            mu_per_mm,
+            efficiency,
+            response: d.response,
+            gain: d.gain,
+            white_level: d.white_level.unwrap_or(DEFAULT_WHITE_LEVEL),
+            offset: d.offset.unwrap_or(0.0),
+            polarity: match d.polarity {
+                PolarityOption::Raw => Polarity::Raw,
+                PolarityOption::Radiograph => Polarity::Radiograph {
+                    range: d.radiograph_range.unwrap_or(DEFAULT_RADIOGRAPH_RANGE),
+                },
+            },
+            names,
+        })
+    }
+
+    /// Index of a material in use.
+    pub fn index(&self, name: &str) -> usize {
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .expect("every material in use was collected")
+    }
+
+    /// The beam reaching one pixel at the detector point nearest the source (no object), at
+    /// exposure factor `factor`: photons per bin.
+    pub fn beam(&self, frame: &DetectorFrame, source_mm: DVec3, factor: f64) -> Beam {
+        let scale = if self.per_mas {
+            // Fluence per mm² per mAs at 1000 mm → at the detector plane (distance D), per pixel.
+            let d_mm = frame.pose.to_local(source_mm).z.abs();
+            let [px, py] = frame.pixel_pitch_mm;
+            self.exposure * factor * (1000.0 / d_mm) * (1000.0 / d_mm) * px * py
+        } else {
+            self.exposure * factor
+        };
+        Beam {
+            energies_kev: self.energies_kev.clone(),
+            photons_per_pixel: self.spectrum_photons.iter().map(|n| n * scale).collect(),
+        }
+    }
+
+    /// The detector model for an image of `i_max`; the automatic gain is set on `nominal`, the
+    /// beam at exposure factor 1 (so a lower exposure level reads darker, a higher one may
+    /// saturate, as on a real detector of fixed gain).
+    pub fn detector(&self, nominal: &Beam, i_max: u16) -> DetectorModel {
+        let response = match self.response {
+            ResponseKind::EnergyIntegrating => Response::EnergyIntegrating,
+            ResponseKind::PhotonCounting => Response::PhotonCounting,
+        };
+        let gain = self.gain.unwrap_or_else(|| {
+            DetectorModel::auto_gain(&response, nominal, &self.efficiency, self.offset, self.white_level, i_max)
+        });
+        DetectorModel {
+            response,
+            efficiency: self.efficiency.clone(),
+            gain,
+            offset: self.offset,
+            i_max,
+            polarity: self.polarity.clone(),
+        }
+    }
+
+    /// Whether a material counts as metal for bead visibility: density at least 4 g/cm³.
+    pub fn is_metal(&self, m: usize) -> bool {
+        self.materials[m].density_g_cm3 >= METAL_DENSITY_G_CM3
+    }
+}
+
+/// Density from which a volume counts as metal in the bead visibility truth, g/cm³ (titanium
+/// alloys 4.4, CoCr 8.3, steel 8.0, tantalum 16.7; cortical bone 1.9).
+pub const METAL_DENSITY_G_CM3: f64 = 4.0;
+
+/// A library or user material by name.
+pub fn resolve(s: &Scenario, name: &str) -> Option<Material> {
+    if let Some(u) = s.materials.get(name) {
+        let fractions: Vec<(&str, f64)> = u.composition.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        return Material::mixture(name, u.density_g_cm3, &fractions).ok();
+    }
+    material::by_name(name).cloned()
+}
+
+/// The materials the phantoms use, in first-use order.
+fn materials_in_use(s: &Scenario, models: &[PhantomModel]) -> (Vec<String>, Vec<Material>) {
+    let mut names: Vec<String> = Vec::new();
+    let mut add = |n: &str| {
+        if !names.iter().any(|x| x == n) {
+            names.push(n.to_string());
+        }
+    };
+    for m in models {
+        for v in &m.volumes {
+            if let Some(mat) = &v.material {
+                add(mat);
+            }
+        }
+        if !m.markers.is_empty() {
+            add(&m.bead_material);
+        }
+    }
+    let materials = names
+        .iter()
+        .map(|n| resolve(s, n).expect("validated material"))
+        .collect();
+    (names, materials)
+}
+
+/// Reads a user spectrum under the confinement rule.
+fn read_spectrum(loaded: &LoadedScenario, file: &str) -> Result<Spectrum, (String, String)> {
+    let path = loaded.base_dir.join(file);
+    let c = confine::Confinement::new(&loaded.base_dir, &loaded.allowed_dirs)
+        .map_err(|e| (e, "--allow-dir takes an existing folder".to_string()))?;
+    let bytes = c.read(&path, MAX_SPECTRUM_FILE_BYTES).map_err(|e| {
+        (
+            format!("cannot read the spectrum: {e}"),
+            "the spectrum file lies in the scenario's folder (or one allowed with --allow-dir)".to_string(),
+        )
+    })?;
+    let shown = confine::shown_path(&path);
+    let text = String::from_utf8(bytes).map_err(|_| {
+        (
+            format!("spectrum {shown} is not UTF-8 text"),
+            "write one `energy_kev photons` pair per line".to_string(),
+        )
+    })?;
+    Spectrum::from_tsv(&text).map_err(|(line, why)| {
+        (
+            format!("spectrum {shown}, line {line}: {why}"),
+            "write one `energy_kev photons` pair per line (keV 1–200, increasing; photons ≥ 0)".to_string(),
+        )
+    })
+}

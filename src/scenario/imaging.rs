@@ -1,0 +1,198 @@
+//! How images are formed, as the user writes it: the `[imaging]` table and the user's
+//! `[materials.<name>]` tables. Plain records; the physics lives in `crate::material`,
+//! `crate::spectrum` and `crate::response`, which later stages feed from these records.
+
+use std::collections::BTreeMap;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Which image model a scenario uses.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImagingMode {
+    /// The paper's model (the default): a pixel whose ray crosses any object is I_max, the
+    /// background carries Poisson noise of `noise_level · I_max`.
+    #[default]
+    Binary,
+    /// A radiograph by physics: per pixel the exact path length in every material, Beer–Lambert
+    /// attenuation of the source spectrum, the detector's absorption and quantum noise on every
+    /// pixel. Every volume needs a `material`.
+    Attenuation,
+}
+
+/// How images are formed. Default: the paper's binary mode; everything else here applies to
+/// `mode = "attenuation"` only.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Imaging {
+    /// `"binary"` (the paper, the default) or `"attenuation"`.
+    #[serde(default)]
+    pub mode: ImagingMode,
+    /// A monochromatic source of this energy, keV (within 1–200). Give exactly one of
+    /// `energy_kev`, `tube` and `spectrum_file` in attenuation mode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy_kev: Option<f64>,
+    /// An X-ray tube: tungsten anode, kVp, anode angle and filtration (SpekPy spectra).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tube: Option<Tube>,
+    /// A spectrum of your own: a text file next to the scenario, one `energy_kev photons` pair
+    /// per line (relative photon numbers; `#` starts a comment).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectrum_file: Option<String>,
+    /// Most energy bins traced per image: finer spectra are merged into this many bins
+    /// (photon-weighted energies, the photon total kept). Default 40.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_energy_bins: Option<u32>,
+    /// Expected photons reaching one pixel with no object in the beam, at the detector point
+    /// nearest the source (elsewhere scaled by inverse square and obliquity). Give exactly one
+    /// of `photons_per_pixel` and `mas` in attenuation mode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photons_per_pixel: Option<f64>,
+    /// Tube current-time product, mAs (needs `tube`): photons per pixel follow from the tube's
+    /// output per mAs at 1 m, the source–detector distance and the pixel area.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mas: Option<f64>,
+    /// The detector's response (shared by every detector).
+    #[serde(default, skip_serializing_if = "ResponseOptions::is_default")]
+    pub detector: ResponseOptions,
+    /// Also write, per image, an EXR with one layer per material: the path length (mm) of each
+    /// pixel's ray in it (truth for image-processing research). Default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub path_length_layers: bool,
+}
+
+impl Imaging {
+    /// Whether this is the default (binary mode with no options): then it is not written back.
+    pub fn is_default(&self) -> bool {
+        *self == Imaging::default()
+    }
+
+    /// Whether images are formed by attenuation.
+    pub fn is_attenuation(&self) -> bool {
+        self.mode == ImagingMode::Attenuation
+    }
+
+    /// The bin limit, default 40.
+    pub fn max_bins(&self) -> usize {
+        self.max_energy_bins.unwrap_or(40) as usize
+    }
+}
+
+/// An X-ray tube with a tungsten anode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Tube {
+    /// Peak tube voltage, kV (an integer from 40 to 150).
+    pub kvp: f64,
+    /// Anode (target) angle, degrees. Default 12.
+    #[serde(default = "Tube::default_anode_angle_deg")]
+    pub anode_angle_deg: f64,
+    /// Filters in the beam, inherent and added (e.g. 2.5 mm aluminium). Default none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub filtration: Vec<Filter>,
+}
+
+impl Tube {
+    fn default_anode_angle_deg() -> f64 {
+        12.0
+    }
+}
+
+/// A filter of uniform thickness across the beam.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Filter {
+    /// A material name (library or `[materials]`), e.g. `"aluminium"`, `"copper"`.
+    pub material: String,
+    /// Thickness along the central ray, mm.
+    pub thickness_mm: f64,
+}
+
+/// How the detector turns absorbed photons into a signal.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ResponseKind {
+    /// The signal is the absorbed energy (flat-panel and CR detectors). The default.
+    #[default]
+    EnergyIntegrating,
+    /// The signal is the number of absorbed photons.
+    PhotonCounting,
+}
+
+/// Which way the stored values run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PolarityOption {
+    /// Detector values: bright where many photons arrive, metal dark. The default.
+    #[default]
+    Raw,
+    /// Flat-field corrected and log-transformed, dense matter bright, as a clinician views a
+    /// radiograph: `I_max · ln(S_open / S) / radiograph_range`, clamped.
+    Radiograph,
+}
+
+/// A scintillator layer in front of the photodiodes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Scintillator {
+    /// Its material. Default `"csi"` (caesium iodide).
+    #[serde(default = "Scintillator::default_material")]
+    pub material: String,
+    /// Thickness, mm (e.g. 0.6 for a CsI flat panel).
+    pub thickness_mm: f64,
+}
+
+impl Scintillator {
+    fn default_material() -> String {
+        "csi".into()
+    }
+}
+
+/// The detector response in attenuation mode.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ResponseOptions {
+    /// `"energy_integrating"` (default) or `"photon_counting"`.
+    #[serde(default)]
+    pub response: ResponseKind,
+    /// A scintillator whose absorption `1 − exp(−μ(E)·t)` weights each energy. Default: an
+    /// ideal absorber (every photon counted).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scintillator: Option<Scintillator>,
+    /// Digital units per keV (energy integrating) or per photon (photon counting). Default:
+    /// chosen so that the open field at the detector point nearest the source reads
+    /// `white_level · I_max`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain: Option<f64>,
+    /// The fraction of I_max the open field reads when `gain` is not given. Default 0.8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub white_level: Option<f64>,
+    /// Digital value added to every pixel before clamping (dark offset). Default 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset: Option<f64>,
+    /// `"raw"` (default) or `"radiograph"`.
+    #[serde(default)]
+    pub polarity: PolarityOption,
+    /// For `polarity = "radiograph"`: the attenuation ln(S_open/S) shown as I_max. Default 7.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radiograph_range: Option<f64>,
+}
+
+impl ResponseOptions {
+    /// Whether nothing was set.
+    pub fn is_default(&self) -> bool {
+        *self == ResponseOptions::default()
+    }
+}
+
+/// A material of the user's: density and mass fractions of elements.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct UserMaterial {
+    /// Density, g/cm³.
+    pub density_g_cm3: f64,
+    /// Mass fraction per chemical symbol, e.g. `{ Co = 0.635, Cr = 0.285, Mo = 0.06, Ni = 0.02 }`;
+    /// the fractions add up to 1.
+    pub composition: BTreeMap<String, f64>,
+}
