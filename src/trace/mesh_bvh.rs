@@ -17,7 +17,7 @@ use crate::phantom::TriMesh;
 /// A mesh in its local frame with a BVH over its triangles. Built once per phantom; each run
 /// moves the rays into the local frame instead of rebuilding.
 pub struct MeshBvh {
-    bvh: Bvh2,
+    pub(super) bvh: Bvh2,
     /// Triangles in BVH primitive order.
     triangles: Vec<Triangle>,
     /// Local bounds (min, max), mm.
@@ -72,6 +72,13 @@ impl MeshBvh {
             faces: mesh.triangles.clone(),
             facing,
         }
+    }
+
+    /// Whether the mesh is closed and consistently wound (every edge shared by exactly two
+    /// triangles that run it in opposite directions, no degenerate triangle;
+    /// [`TriMesh::check_closed`]). Path lengths ([`super::path_lengths`]) need a closed mesh.
+    pub fn is_closed(&self) -> bool {
+        self.facing != Faces::All
     }
 
     /// Whether the segment `origin + t·direction`, 0 < t < 1, crosses the mesh surface.

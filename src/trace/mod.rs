@@ -12,15 +12,23 @@
 //! that cannot be projected (a vertex at or behind the source's plane or beyond the detector plane)
 //! is traced by `render_binary` too.
 //!
+//! Cuboids and elliptic cylinders (analytic solids, `shapes.rs`) are decided by the same exact
+//! predicate in both projectors: the segment from the source to the pixel centre runs inside the
+//! solid for a positive length. [`path_lengths`] gives that length per pixel (`path_length.rs`).
+//!
 //! Both only look at pixels inside an object's projected bounds: each object's bounding box is
 //! projected onto the detector (the projection of a convex hull is the convex hull of the
 //! projections, so the corners' pixel rectangle bounds the object's shadow).
 
+mod crossings;
 mod mesh_bvh;
+mod path_length;
 mod raster;
+mod shapes;
 mod watertight;
 
 pub use mesh_bvh::MeshBvh;
+pub use path_length::{PathLengths, path_lengths, path_lengths_traced};
 
 use glam::DVec3;
 
@@ -41,6 +49,24 @@ pub enum Object<'a> {
         bvh: &'a MeshBvh,
         /// Local → world.
         pose: Pose,
+    },
+    /// A solid box centred on its local origin, edges along the local axes (e.g. an acrylic
+    /// calibration plate). Its faces belong to it (a ray along a face runs inside).
+    Cuboid {
+        /// Local → world.
+        pose: Pose,
+        /// Half the edge lengths along local x, y, z, mm.
+        half_size_mm: DVec3,
+    },
+    /// A solid elliptic cylinder centred on its local origin, axis along local z, flat caps
+    /// (e.g. a soft-tissue envelope). Its surface belongs to it.
+    EllipticCylinder {
+        /// Local → world.
+        pose: Pose,
+        /// Semi-axes of the cross-section along local x and y, mm.
+        radii_mm: [f64; 2],
+        /// Half the length along local z (caps at z = ±half_length_mm), mm.
+        half_length_mm: f64,
     },
 }
 
@@ -73,6 +99,10 @@ pub fn render_binary(
                 if !raster::fill_mesh(&mut image, frame, source_mm, bvh, *pose, i_max) {
                     trace_object(&mut image, frame, source_mm, object, i_max);
                 }
+            }
+            // The exact predicate over the projected bounds: the tracer's image, bit for bit.
+            Object::Cuboid { .. } | Object::EllipticCylinder { .. } => {
+                trace_object(&mut image, frame, source_mm, object, i_max);
             }
         }
     }
@@ -134,7 +164,9 @@ impl Object<'_> {
                 position_mm: *centre_mm,
                 rotation: glam::DMat3::IDENTITY,
             },
-            Object::Mesh { pose, .. } => *pose,
+            Object::Mesh { pose, .. }
+            | Object::Cuboid { pose, .. }
+            | Object::EllipticCylinder { pose, .. } => *pose,
         }
     }
 
@@ -144,6 +176,15 @@ impl Object<'_> {
                 (DVec3::splat(-radius_mm), DVec3::splat(*radius_mm))
             }
             Object::Mesh { bvh, .. } => bvh.bounds_mm,
+            Object::Cuboid { half_size_mm, .. } => (-*half_size_mm, *half_size_mm),
+            Object::EllipticCylinder {
+                radii_mm,
+                half_length_mm,
+                ..
+            } => {
+                let half = DVec3::new(radii_mm[0], radii_mm[1], *half_length_mm);
+                (-half, half)
+            }
         }
     }
 
@@ -158,7 +199,39 @@ impl Object<'_> {
                 pose.to_local(source),
                 pose.rotation.transpose() * (target - source),
             ),
+            Object::Cuboid { .. } | Object::EllipticCylinder { .. } => {
+                self.chord_mm(source, target).is_some_and(|l| l > 0.0)
+            }
         }
+    }
+
+    /// The length (mm) of the segment from `source` to `target` inside an analytic solid
+    /// (sphere, cuboid, elliptic cylinder); `None` for a mesh.
+    fn chord_mm(&self, source: DVec3, target: DVec3) -> Option<f64> {
+        let d = target - source;
+        let interval = match self {
+            Object::Sphere {
+                centre_mm,
+                radius_mm,
+            } => shapes::sphere_interval(*centre_mm, *radius_mm, source, d),
+            Object::Cuboid { pose, half_size_mm } => shapes::cuboid_interval(
+                *half_size_mm,
+                pose.to_local(source),
+                pose.rotation.transpose() * d,
+            ),
+            Object::EllipticCylinder {
+                pose,
+                radii_mm,
+                half_length_mm,
+            } => shapes::cylinder_interval(
+                *radii_mm,
+                *half_length_mm,
+                pose.to_local(source),
+                pose.rotation.transpose() * d,
+            ),
+            Object::Mesh { .. } => return None,
+        };
+        Some(interval.map_or(0.0, |t| shapes::segment_length_mm(t, d)))
     }
 }
 

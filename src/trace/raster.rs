@@ -224,7 +224,7 @@ fn first_true(lo: i64, hi: i64, guess: i64, f: impl Fn(i64) -> bool) -> i64 {
 /// `[0, n)`; `None` when empty. (Rounding `lo − 0.5` is monotonic, so a centre exactly at `lo`
 /// or `hi` is kept.) Written with casts rather than `ceil`/`floor`, which are calls into the
 /// math library on baseline x86-64 and the hottest part of a triangle's set-up.
-fn centre_range(lo: f64, hi: f64, n: u32) -> Option<(i64, i64)> {
+pub(super) fn centre_range(lo: f64, hi: f64, n: u32) -> Option<(i64, i64)> {
     let (lo, hi) = (lo - 0.5, hi - 0.5);
     if !(hi >= 0.0 && lo < n as f64) {
         return None;
@@ -246,7 +246,7 @@ const NARROW_COLUMNS: i64 = 4;
 /// Calls `span(row, first, end)` for every row of the `w × h` grid with the half-open run of
 /// columns whose pixel centres lie inside the triangle `a, b, c` (continuous pixel coordinates,
 /// counter-clockwise in (u, v): positive area).
-fn scan_triangle(
+pub(super) fn scan_triangle(
     w: u32,
     h: u32,
     a: DVec2,
@@ -362,4 +362,4 @@ pub(super) fn fill_sphere(
 }
 
 #[cfg(test)]
-mod tests;
+pub(super) mod tests;

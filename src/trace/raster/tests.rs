@@ -142,7 +142,8 @@ fn a_diagonal_through_pixel_centres_is_filled_once() {
     }
 }
 
-fn femoral_mesh() -> TriMesh {
+/// The shipped femoral component (`scenarios/models/femoral_component.glb`), closed, wound outward.
+pub(in crate::trace) fn femoral_mesh() -> TriMesh {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/models/femoral_component.glb");
     let mut mesh = mesh_io::load_mesh(&path, 1000.0).expect("the femoral component loads");
     mesh.check_closed()
@@ -155,7 +156,7 @@ fn femoral_mesh() -> TriMesh {
 
 /// A detector `n × n` of 0.3 mm pixels 500 mm below the origin (s = +z, turned a little),
 /// shifted by `offset_mm` along its plane, and a source about 1300 mm above the origin.
-fn beamline(
+pub(in crate::trace) fn beamline(
     rng: &mut rand_chacha::ChaCha8Rng,
     n: u32,
     offset_mm: [f64; 2],
@@ -183,7 +184,7 @@ fn beamline(
 }
 
 /// Distance from `p` to the segment `a b`.
-fn segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+pub(in crate::trace) fn segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     let ab = b - a;
     let t = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
     (a + t * ab - p).length()
