@@ -11,6 +11,7 @@ pub mod output;
 pub mod phantom;
 pub mod random;
 pub mod reconstruct;
+pub mod response;
 pub mod scenario;
 pub mod simulate;
 pub mod trace;

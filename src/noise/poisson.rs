@@ -167,22 +167,48 @@ impl Poisson {
                 exp_neg_lambda: libm::exp(-lambda),
             }
         } else {
-            let s = libm::sqrt(lambda);
-            let b = 0.931 + 2.53 * s;
-            let a = -0.059 + 0.02483 * b;
-            let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-            let v_r = 0.9277 - 3.6224 / (b - 2.0);
-            Method::Ptrs(Ptrs {
-                lambda,
-                ln_lambda: libm::log(lambda),
-                a,
-                two_a: 2.0 * a,
-                b,
-                ln_inv_alpha: libm::log(inv_alpha),
-                v_r,
-            })
+            let (mut ptrs, inv_alpha) = Ptrs::without_logs(lambda);
+            ptrs.set_logs(inv_alpha);
+            Method::Ptrs(ptrs)
         };
         Poisson { lambda, method }
+    }
+
+    /// One sample of the Poisson law of mean `lambda`: the same value, drawn from the same
+    /// `u64`s (leaving `rng` at the same position), as `Poisson::new(lambda).sample(rng)`.
+    ///
+    /// This is the path for a mean that changes from one draw to the next (attenuation images
+    /// draw one sample per pixel, each with its own λ): for `λ ≥ 10` it skips the two
+    /// logarithms of the PTRS constants (`ln λ`, `ln α⁻¹`) unless a trial reaches the full
+    /// acceptance test, where they are computed exactly as [`Poisson::new`] computes them.
+    ///
+    /// # Panics
+    /// When `lambda` is negative, NaN or infinite (as [`Poisson::new`]).
+    #[inline]
+    pub fn sample_with_mean(lambda: f64, rng: &mut impl Rng) -> u64 {
+        if !(lambda >= PTRS_THRESHOLD && lambda.is_finite()) {
+            return Poisson::new(lambda).sample(rng);
+        }
+        let (mut p, inv_alpha) = Ptrs::without_logs(lambda);
+        let mut have_logs = false;
+        loop {
+            let x1 = rng.next_u64();
+            let x2 = rng.next_u64();
+            let (k, us, v, trial) = p.trial(x1, x2);
+            match trial {
+                Trial::Accept => return k as u64,
+                Trial::Reject => {}
+                Trial::Slow => {
+                    if !have_logs {
+                        p.set_logs(inv_alpha);
+                        have_logs = true;
+                    }
+                    if p.decide_slow(k, us, v) {
+                        return k as u64;
+                    }
+                }
+            }
+        }
     }
 
     /// The mean λ.
@@ -247,6 +273,33 @@ fn knuth(exp_neg_lambda: f64, rng: &mut impl Rng) -> u64 {
 }
 
 impl Ptrs {
+    /// The PTRS constants of `λ ≥ 10` except the two logarithms (left NaN), and `α⁻¹`.
+    #[inline]
+    fn without_logs(lambda: f64) -> (Ptrs, f64) {
+        let s = libm::sqrt(lambda);
+        let b = 0.931 + 2.53 * s;
+        let a = -0.059 + 0.02483 * b;
+        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+        let v_r = 0.9277 - 3.6224 / (b - 2.0);
+        let ptrs = Ptrs {
+            lambda,
+            ln_lambda: f64::NAN,
+            a,
+            two_a: 2.0 * a,
+            b,
+            ln_inv_alpha: f64::NAN,
+            v_r,
+        };
+        (ptrs, inv_alpha)
+    }
+
+    /// Computes `ln λ` and `ln α⁻¹` (needed only by the full acceptance test).
+    #[inline]
+    fn set_logs(&mut self, inv_alpha: f64) {
+        self.ln_lambda = libm::log(self.lambda);
+        self.ln_inv_alpha = libm::log(inv_alpha);
+    }
+
     /// The cheap part of one trial from its two draws: `(k, u_s, V, outcome)`, with the same
     /// operations, in the same order, as the module documentation.
     #[inline(always)]
@@ -718,6 +771,34 @@ mod tests {
         }
         println!("max |g − lgamma| / (|g| + 128) = 2^{:.1}", worst.log2());
         assert!(worst < 2f64.powi(-46), "{worst:e}");
+    }
+
+    /// `sample_with_mean` gives `Poisson::new(λ).sample`'s values and leaves the generator at
+    /// the same place, for λ on both sides of the method switch and a fresh λ every draw.
+    #[test]
+    fn sample_with_mean_equals_new_then_sample() {
+        let mut a = rng(40);
+        let mut b = rng(40);
+        let mut lambdas: Vec<f64> = CHECK_LAMBDAS.to_vec();
+        lambdas.extend([0.0, 1e-9, 9.999999, 10.0, 10.000001, 1e6, 3e9]);
+        for i in 0..20_000 {
+            // A mean that changes every draw, as across an attenuation image.
+            lambdas.push(0.37 * i as f64 + 0.001 * (i % 17) as f64);
+        }
+        for &lambda in &lambdas {
+            for _ in 0..3 {
+                let x = Poisson::sample_with_mean(lambda, &mut a);
+                let y = Poisson::new(lambda).sample(&mut b);
+                assert_eq!(x, y, "λ={lambda}");
+            }
+        }
+        assert_eq!(a.next_u64(), b.next_u64(), "same generator position");
+    }
+
+    #[test]
+    #[should_panic]
+    fn sample_with_mean_refuses_nan_as_new_does() {
+        Poisson::sample_with_mean(f64::NAN, &mut rng(0));
     }
 
     #[test]
