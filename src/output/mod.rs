@@ -7,6 +7,7 @@ pub mod exr;
 pub mod folder_readme;
 pub mod manifest;
 pub mod measured;
+pub mod preview;
 pub mod tiff;
 pub mod truth;
 pub mod verify;

@@ -53,22 +53,22 @@ use profile::{BoneBox, Polygon};
 /// mm. The shape is mostly an extrusion along x, so x can be sampled more coarsely.
 pub const GRID_STEP_MM: [f64; 2] = [2.0, 0.9];
 /// Half the medio-lateral width at the condyles, mm.
-const HALF_WIDTH: f64 = 34.0;
+pub(crate) const HALF_WIDTH: f64 = 34.0;
 /// The flange narrows by this many mm of half-width per mm above [`TAPER_START_Y`].
 const FLANGE_TAPER: f64 = 0.35;
 /// Height (design frame, mm above the lowest point) where the flange starts to narrow.
 const TAPER_START_Y: f64 = 22.0;
 /// Top of the anterior flange, mm above the lowest point.
-const Y_TOP_ANT: f64 = 54.0;
+pub(crate) const Y_TOP_ANT: f64 = 54.0;
 /// Top of the posterior condyles, mm above the lowest point.
-const Y_TOP_POST: f64 = 40.0;
+pub(crate) const Y_TOP_POST: f64 = 40.0;
 /// Rounding radii, mm: medio-lateral side edges, top caps, bone-side edges, notch edges.
 const R_SIDE: f64 = 3.0;
 const R_CAP: f64 = 1.5;
 const R_INNER: f64 = 1.0;
 const R_NOTCH_EDGE: f64 = 1.5;
 /// Intercondylar notch half-width, and the z of its anterior end (design frame), mm.
-const NOTCH_HALF_WIDTH: f64 = 9.5;
+pub(crate) const NOTCH_HALF_WIDTH: f64 = 9.5;
 const NOTCH_END_Z: f64 = 2.0;
 /// Coronal radius of the condyles' articular surface, mm.
 const R_CORONAL: f64 = 35.0;
@@ -111,6 +111,14 @@ pub struct FemoralComponent {
 /// Builds the femoral component (see the module documentation for shape, frame and beads).
 /// Deterministic: every call returns the same mesh and beads.
 pub fn femoral_component() -> FemoralComponent {
+    femoral_component_and_origin().0
+}
+
+/// Builds the femoral component and returns with it the position of its local frame's origin in
+/// the design frame of [`profile`] (x as local, lowest point of the metal at y = 0), mm: a point's
+/// local coordinates are its design coordinates minus this origin. Models made to fit the
+/// component (the distal femur) are designed against [`profile`] and moved by it.
+pub fn femoral_component_and_origin() -> (FemoralComponent, DVec3) {
     let outer = profile::outer_contour();
     let bone = BoneBox::new(&outer);
     let (grid, values) = sample_solid(&outer, &bone);
@@ -139,13 +147,14 @@ pub fn femoral_component() -> FemoralComponent {
             diameter_mm: BEAD_DIAMETER,
         })
         .collect();
-    FemoralComponent {
+    let component = FemoralComponent {
         mesh: TriMesh {
             vertices,
             triangles: surface.triangles,
         },
         beads,
-    }
+    };
+    (component, centre)
 }
 
 /// The sampling grid (design frame: lowest point at y = 0) and the implicit function at its nodes.
@@ -184,13 +193,13 @@ fn sample_solid(outer: &Polygon, bone: &BoneBox) -> (Grid, Vec<f64>) {
 
 /// Rounded intersection of two solids given by distances `a`, `b` (negative inside): convex
 /// edges are rounded with radius `r`.
-fn round_intersection(a: f64, b: f64, r: f64) -> f64 {
+pub(crate) fn round_intersection(a: f64, b: f64, r: f64) -> f64 {
     let (u, v) = ((r + a).max(0.0), (r + b).max(0.0));
     (-r).min(a.max(b)) + (u * u + v * v).sqrt()
 }
 
 /// Cubic smooth step from 0 at `e0` to 1 at `e1`.
-fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
+pub(crate) fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
     let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
 }
@@ -225,4 +234,4 @@ fn solid(p: DVec3, s_outer: f64, s_bone: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -7,6 +7,7 @@
 pub mod calibration_box;
 pub mod confine;
 pub mod femoral;
+pub mod femur;
 pub mod isosurface;
 pub mod mesh;
 pub mod mesh_io;

@@ -19,7 +19,7 @@ fn vertex(m: &TriMesh, i: u32) -> DVec3 {
 }
 
 /// Distance from `p` to triangle `abc` (closest point by Voronoi regions, Ericson §5.1.5).
-fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+pub(crate) fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));
     if d1 <= 0.0 && d2 <= 0.0 {
