@@ -281,6 +281,29 @@ impl Locator {
         span
     }
 
+    /// Whether the document holds a value at exactly `path` (the user wrote it).
+    pub fn has(&self, path: &KeyPath) -> bool {
+        let Some(root) = self.root.as_ref() else {
+            return false;
+        };
+        let mut table: Option<&DeTable> = Some(root.get_ref());
+        let mut value: Option<&Spanned<DeValue>> = None;
+        for seg in &path.0 {
+            let next = match (seg, table, value.map(|v| v.get_ref())) {
+                (Segment::Key(k), Some(t), _) => t.get(k.as_str()),
+                (Segment::Index(i), _, Some(DeValue::Array(a))) => a.get(*i),
+                _ => None,
+            };
+            let Some(next) = next else { return false };
+            table = match next.get_ref() {
+                DeValue::Table(t) => Some(t),
+                _ => None,
+            };
+            value = Some(next);
+        }
+        true
+    }
+
     /// The key path of the innermost key or value whose span contains byte `offset`.
     ///
     /// Array-of-tables spans cover only their headers, so this searches the whole tree depth first.

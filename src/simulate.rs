@@ -207,7 +207,6 @@ pub fn simulate(
     let truth_staged = truth.map(OutputTarget::stage).transpose()?;
     let root = staged.path();
     let truth_root = truth_staged.as_ref().map(|t| t.path());
-    let s = &plan.loaded.scenario;
     let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
         .models
         .iter()

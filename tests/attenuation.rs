@@ -132,7 +132,8 @@ fn path_length_layers_hold_the_exact_chord_and_are_truth() {
     let image = &truth.images[0];
     let file = image.path_lengths.as_ref().expect("the path-length EXR is listed");
     let bytes = std::fs::read(out.join("runs/n0-r00").join(&file.path)).unwrap();
-    let img = exr::prelude::read()
+    use exr::prelude::*;
+    let img = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()

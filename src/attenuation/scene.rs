@@ -109,9 +109,16 @@ pub fn parts<'a>(
             let mut host: Option<usize> = None;
             for vi in 0..volumes {
                 let placement = match &parts[vi].object {
-                    Object::Mesh { bvh: _, pose } => {
-                        let mesh = models[parts[vi].phantom].mesh.as_ref().expect("mesh volume");
-                        containment::in_mesh(pose.to_local(m.position_mm), r, mesh)
+                    Object::Mesh { bvh, pose } => {
+                        let local = pose.to_local(m.position_mm);
+                        let (lo, hi) = bvh.bounds_mm;
+                        if local.cmplt(lo - r).any() || local.cmpgt(hi + r).any() {
+                            // Clear of the mesh's bounding box: outside, no triangle to test.
+                            Placement::Outside
+                        } else {
+                            let mesh = models[parts[vi].phantom].mesh.as_ref().expect("mesh volume");
+                            containment::in_mesh(local, r, mesh)
+                        }
                     }
                     Object::Cuboid { pose, half_size_mm } => {
                         containment::in_cuboid(pose.to_local(m.position_mm), r, *half_size_mm)

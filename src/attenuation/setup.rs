@@ -77,7 +77,8 @@ impl Setup {
             }
             sp
         } else if let Some(file) = &im.spectrum_file {
-            read_spectrum(loaded, file).map_err(|(m, h)| err(key.key("spectrum_file"), m, &h))?
+            read_spectrum(loaded, file)
+                .map_err(|(m, h): (String, String)| err(key.key("spectrum_file"), m, &h))?
         } else {
             unreachable!("validated: one spectrum source");
         };

@@ -49,7 +49,7 @@ impl Check<'_> {
 
     /// Whether the user wrote the key (not only got its default).
     fn written(&self, path: &KeyPath) -> bool {
-        self.loc.span_of(path).is_some()
+        self.loc.has(path)
     }
 
     fn positive(&mut self, path: KeyPath, v: f64, what: &str, help: &str) {
@@ -410,7 +410,7 @@ phantoms = ["c"]
 "#;
 
     fn messages(extra: &str) -> Vec<String> {
-        match from_text(Path::new("s.toml"), &format!("{BASE}{extra}")) {
+        match from_text(&format!("{BASE}{extra}"), Path::new("s.toml"), Path::new(".")) {
             Ok(l) => l.warnings.iter().map(|d| format!("warning: {d}")).collect(),
             Err(e) => e.iter().map(|d| d.to_string()).collect(),
         }
@@ -439,7 +439,7 @@ phantoms = ["c"]
         let m = messages(&format!(
             "[imaging]\nmode = \"attenuation\"\nenergy_kev = 60\nphotons_per_pixel = 1000\n{CYL}material = \"unobtainium\"\n"
         ));
-        assert!(m.iter().any(|x| x.contains("no material is named `unobtainium`") && x.contains("soft_tissue") && x.contains("line")), "{m:?}");
+        assert!(m.iter().any(|x| x.contains("no material is named `unobtainium`") && x.contains("soft_tissue") && x.contains("s.toml:22:12")), "{m:?}");
     }
 
     #[test]
@@ -448,6 +448,11 @@ phantoms = ["c"]
             "[protocol]\nnoise_levels = [0.1]\n[imaging]\nmode = \"attenuation\"\nenergy_kev = 60\nphotons_per_pixel = 1000\n{CYL}material = \"water\"\n"
         ));
         assert!(m.iter().any(|x| x.contains("exposure_levels")), "{m:?}");
+        // Another [protocol] key alone is not a noise level.
+        let m = messages(&format!(
+            "[protocol]\nruns_per_level = 2\n[imaging]\nmode = \"attenuation\"\nenergy_kev = 60\nphotons_per_pixel = 1000\n{CYL}material = \"water\"\n"
+        ));
+        assert!(m.is_empty(), "{m:?}");
         let m = messages(&format!("[protocol]\nexposure_levels = [1.0]\n{CYL}"));
         assert!(m.iter().any(|x| x.contains("binary mode has noise_levels")), "{m:?}");
     }
