@@ -11,4 +11,5 @@ pub mod random;
 pub mod reconstruct;
 pub mod scenario;
 pub mod simulate;
+pub mod spectrum;
 pub mod trace;
