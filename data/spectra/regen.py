@@ -5,7 +5,7 @@ Tools (the shipped files were made with exactly these):
     Python 3.11.7, spekpy 2.5.4 (physics "spekpy-v2-casim", mu data "pene", its defaults),
     numpy 2.4.6.
 Install:  pip install spekpy==2.5.4 numpy==2.4.6
-Run:      python3 data/spectra/regen.py        (about 15 minutes on one core)
+Run:      python3 data/spectra/regen.py        (15 minutes on an idle core, 50 on a busy one)
 
 Writes, beside this script:
   tungsten.tsv   unfiltered tungsten-anode tube spectra, one row per (anode angle, kVp)
