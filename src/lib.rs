@@ -14,4 +14,5 @@ pub mod reconstruct;
 pub mod response;
 pub mod scenario;
 pub mod simulate;
+pub mod spectrum;
 pub mod trace;
