@@ -211,7 +211,7 @@ fn a_bead_across_a_surface_is_refused_before_anything_is_written() {
     let tmp = tempfile::tempdir().unwrap();
     let text = water_cylinder("").replace(
         "[[exposures]]",
-        "[[phantoms]]\nid = \"beads\"\n[[phantoms.beads]]\nid = \"B1\"\nposition_mm = [39.8, 0.0, 0.0]\n[[exposures]]",
+        "[[phantoms]]\nid = \"beads\"\n[[phantoms.beads]]\nid = \"B1\"\nposition_mm = [0.0, 0.0, 39.8]\n[[exposures]]",
     );
     let text = text.replace("phantoms = [\"water\"]", "phantoms = [\"water\", \"beads\"]");
     let scenario = write(tmp.path(), "s.toml", &text);
@@ -230,7 +230,7 @@ fn a_solid_poking_out_of_the_one_it_is_inside_is_an_error_naming_both() {
     let tmp = tempfile::tempdir().unwrap();
     let text = water_cylinder("").replace(
         "[[exposures]]",
-        "[[phantoms]]\nid = \"bone\"\nrotation_deg = [-90.0, 0.0, 0.0]\nmaterial = \"bone_cortical\"\ninside = \"water\"\nelliptic_cylinder = { radii_mm = [50.0, 10.0], length_mm = 100.0 }\n[[exposures]]",
+        "[[phantoms]]\nid = \"bone\"\nrotation_deg = [-90.0, 0.0, 0.0]\nmaterial = \"bone_cortical\"\ninside = \"water\"\nelliptic_cylinder = { radii_mm = [10.0, 50.0], length_mm = 100.0 }\n[[exposures]]",
     );
     let text = text.replace("phantoms = [\"water\"]", "phantoms = [\"water\", \"bone\"]");
     let scenario = write(tmp.path(), "s.toml", &text);
