@@ -11,6 +11,9 @@
 //!     protocol makes each image.
 //! - `model` also has `mesh_binary_1t` and `mesh_traced_1t`: the femoral component's mesh alone,
 //!   without its 6 beads, which is the scene the Embree peer casts (`bench/peers.py`).
+//! - `path`: the femoral component's mesh alone (no beads), 1 thread: `mesh_binary_1t`
+//!   (`trace::render_binary`) against `mesh_path_1t` (`trace::path_lengths`: scan conversion of
+//!   front and back faces with depth, attenuation mode's per-object step).
 //! - `noise`: `add_noise` alone on a clean 1440² model image (level 0.45, I_max 65535), `1t` in a
 //!   1-thread pool and `all` with the default pool.
 //!
@@ -25,7 +28,7 @@ use std::time::Duration;
 
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use rayon::ThreadPool;
-use rsasim::trace::{Object, render_binary, render_binary_traced};
+use rsasim::trace::{Object, path_lengths, render_binary, render_binary_traced};
 use rsasim::{noise, simulate};
 use scenes::{Scenes, covered_fraction};
 
@@ -97,6 +100,17 @@ fn projector(c: &mut Criterion) {
     image_group(c, &s, &pool, "calibration", &s.calibration());
     image_group(c, &s, &pool, "model", &s.model());
     image_group(c, &s, &pool, "sphere", &s.sphere());
+
+    let femur = [s.femur.object()];
+    let mut g = c.benchmark_group("path");
+    g.sampling_mode(SamplingMode::Flat);
+    g.bench_function("mesh_binary_1t", |b| {
+        b.iter(|| pool.install(|| render_binary(&s.frame, black_box(s.source), &femur, s.i_max)))
+    });
+    g.bench_function("mesh_path_1t", |b| {
+        b.iter(|| pool.install(|| path_lengths(&s.frame, black_box(s.source), &femur[0])))
+    });
+    g.finish();
 
     let clean = render_binary(&s.frame, s.source, &s.model(), s.i_max);
     let key = s.noise_key("model");

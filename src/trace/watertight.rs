@@ -22,14 +22,7 @@ pub struct ShearedRay {
 impl ShearedRay {
     /// Prepares `origin + t·direction` (direction need not be normalised).
     pub fn new(origin: Vec3A, direction: Vec3A) -> Self {
-        let a = direction.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
+        let kz = dominant_axis(direction.abs().as_dvec3());
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
         if direction[kz] < 0.0 {
@@ -89,6 +82,18 @@ impl ShearedRay {
             return f32::INFINITY;
         }
         t_scaled / det
+    }
+}
+
+/// The axis along which `magnitudes` (absolute values of a direction) is largest, the first on a tie.
+pub(super) fn dominant_axis(magnitudes: glam::DVec3) -> usize {
+    let a = magnitudes;
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
     }
 }
 

@@ -329,22 +329,22 @@ fn analytic_solids_fill_the_same_pixels_in_binary_mode_and_both_projectors_agree
     }
 }
 
+/// [`compare`] at `poses` random beamlines (an `n × n` detector) and mesh poses.
+fn compare_at_random_poses(label: &str, mesh: &MeshBvh, n: u32, poses: usize) {
+    let mut rng = stream(&format!("path length {label}"));
+    for k in 0..poses {
+        let (f, source) = beamline(&mut rng, n, [0.0, 0.0]);
+        let pose = random_pose(&mut rng);
+        let (covered, skipped) = compare(&format!("{label} {k}"), mesh, &f, source, pose);
+        assert!(covered > 10_000 && skipped < covered / 1000);
+    }
+}
+
 #[test]
 fn a_cube_mesh_matches_the_tracer() {
     let bvh = MeshBvh::new(&cube(20.0));
     assert!(bvh.is_closed());
-    let mut rng = stream("path length cube");
-    for k in 0..4 {
-        let (f, source) = beamline(&mut rng, 300, [0.0, 0.0]);
-        let (covered, skipped) = compare(
-            &format!("cube {k}"),
-            &bvh,
-            &f,
-            source,
-            random_pose(&mut rng),
-        );
-        assert!(covered > 10_000 && skipped < covered / 1000);
-    }
+    compare_at_random_poses("cube", &bvh, 300, 4);
     // Axis-aligned, the source on the cube's axis: edges project through rows of pixel centres.
     let (f, source) = (frame(200, 0.5), DVec3::new(0.0, 0.0, 1000.0));
     let pose = Pose::from_position_euler_deg([0.0, 0.0, 400.0], [0.0, 0.0, 0.0]);
@@ -391,18 +391,8 @@ fn a_torus_with_two_entries_and_exits_matches_the_tracer() {
 #[test]
 fn the_femoral_component_matches_the_tracer() {
     let bvh = MeshBvh::new(&femoral_mesh());
-    let mut rng = stream("path length femoral");
-    for k in 0..3 {
-        let (f, source) = beamline(&mut rng, 400, [0.0, 0.0]);
-        let (covered, skipped) = compare(
-            &format!("femoral {k}"),
-            &bvh,
-            &f,
-            source,
-            random_pose(&mut rng),
-        );
-        assert!(covered > 10_000 && skipped < covered / 1000);
-    }
+    compare_at_random_poses("femoral", &bvh, 400, 3);
+    let mut rng = stream("path length femoral clipped");
     // The shadow crossing the detector's borders.
     let (f, source) = beamline(&mut rng, 300, [40.0, 40.0]);
     compare("femoral clipped", &bvh, &f, source, random_pose(&mut rng));
