@@ -16,7 +16,7 @@ use std::path::Path;
 
 use common::{hashes, root, run_scenario};
 
-const GOLDEN: &[&str] = &["small_biplanar", "small_uniplanar"];
+const GOLDEN: &[&str] = &["small_biplanar", "small_uniplanar", "small_attenuation"];
 
 /// The crate version the golden hashes were blessed at.
 const VERSION_FILE: &str = "VERSION";
@@ -134,21 +134,16 @@ fn golden_scenarios_reproduce_their_hashes() {
 
 #[test]
 fn outputs_are_identical_on_one_and_two_threads() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (a, b) = (tmp.path().join("t1"), tmp.path().join("t2"));
-    run_scenario(
-        "scenarios/golden/small_biplanar.toml",
-        &a,
-        &[("RAYON_NUM_THREADS", "1")],
-    );
-    run_scenario(
-        "scenarios/golden/small_biplanar.toml",
-        &b,
-        &[("RAYON_NUM_THREADS", "2")],
-    );
-    let (ha, hb) = (hashes(&a), hashes(&b));
-    assert!(ha.len() > 20);
-    assert_eq!(ha, hb);
+    for name in ["small_biplanar", "small_attenuation"] {
+        let tmp = tempfile::tempdir().unwrap();
+        let (a, b) = (tmp.path().join("t1"), tmp.path().join("t2"));
+        let scenario = format!("scenarios/golden/{name}.toml");
+        run_scenario(&scenario, &a, &[("RAYON_NUM_THREADS", "1")]);
+        run_scenario(&scenario, &b, &[("RAYON_NUM_THREADS", "2")]);
+        let (ha, hb) = (hashes(&a), hashes(&b));
+        assert!(ha.len() > 20, "{name}");
+        assert_eq!(ha, hb, "{name}");
+    }
 }
 
 #[test]
