@@ -166,6 +166,14 @@ fn run(
     let start = Instant::now();
     let summary = simulate::simulate(plan, target, truth_target, &|| bar.inc(1)).map_err(|e| {
         bar.abandon();
+        if e.kind() == std::io::ErrorKind::InvalidData {
+            // Found while rendering (the scene cannot be simulated as written): an input error.
+            eprintln!(
+                "error: {}: {e}\n  = help: fix the scenario; the check needs the path lengths, so only a run finds it\n\nrsasim: 1 error(s); nothing was written",
+                plan.loaded.path.display()
+            );
+            return 2;
+        }
         eprintln!(
             "error: writing {} failed: {e}\n  = note: nothing was replaced; a previous output there is unchanged",
             out.display()

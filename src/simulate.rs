@@ -555,7 +555,7 @@ fn write_run(
         let parts = match &plan.setup {
             Some(setup) => Some(
                 attenuation::parts(s, setup, models, bvhs, run, exposure)
-                    .map_err(|(_, e)| std::io::Error::other(e))?,
+                    .map_err(|(_, e)| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?,
             ),
             None => None,
         };
@@ -582,10 +582,14 @@ fn write_run(
                         s.imaging.path_length_layers,
                     )
                     .map_err(|e| {
-                        std::io::Error::other(format!(
-                            "run {}, exposure {}, detector {}: {e}",
-                            run.id, exposure.id, det.id
-                        ))
+                        // The scene itself is wrong (a nested solid pokes out): an input error.
+                        std::io::Error::new(
+                            std::io::ErrorKind::InvalidData,
+                            format!(
+                                "run {}, exposure {}, detector {}: {e}",
+                                run.id, exposure.id, det.id
+                            ),
+                        )
                     })?;
                     if let Some(lengths) = &image.lengths_mm {
                         let name = format!("{}-{}-pathlength.exr", exposure.id, det.id);
@@ -595,7 +599,11 @@ fn write_run(
                             manifest_entry(truth_root, &truth_dir.join(&name), &bytes)?,
                         ));
                     }
-                    (image.pixels, Some(image.beads), Some(image.saturated as u64))
+                    (
+                        image.pixels,
+                        Some(image.beads),
+                        Some(image.saturated as u64),
+                    )
                 }
                 _ => (
                     noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key),
@@ -626,7 +634,10 @@ fn write_run(
                 .iter()
                 .flat_map(|&pi| {
                     let ph = &run.phantoms[pi];
-                    ph.markers.iter().enumerate().map(move |(bi, m)| (pi, ph, bi, m))
+                    ph.markers
+                        .iter()
+                        .enumerate()
+                        .map(move |(bi, m)| (pi, ph, bi, m))
                 })
                 .map(|(pi, ph, bi, m)| {
                     let uv = frame

@@ -105,3 +105,23 @@ fn plausibility_bounds_and_echo_length_are_the_documented_ones() {
     assert_eq!(rsasim::diagnostic::ECHO_MAX_CHARS, 200);
     assert!(rsasim::diagnostic::cut(&"x".repeat(201)).ends_with("… (1 more bytes)"));
 }
+
+#[test]
+fn attenuation_metal_density_and_fluence_are_the_documented_ones() {
+    states("`f = (D/r)³`");
+    states("density ≥ 4 g/cm³");
+    assert_eq!(rsasim::attenuation::setup::METAL_DENSITY_G_CM3, 4.0);
+    // A detector 1200 mm below the source, 1 mm pixels: the corner pixel's fluence is (D/r)³.
+    let frame = DetectorFrame {
+        pose: Pose {
+            position_mm: DVec3::new(0.0, 0.0, -200.0),
+            rotation: DMat3::IDENTITY,
+        },
+        pixels: [64, 64],
+        pixel_pitch_mm: [1.0, 1.0],
+    };
+    let f = rsasim::response::point_source_fluence(&frame, DVec3::new(0.0, 0.0, 1000.0));
+    let (x, y) = (0.5 - 32.0, 0.5 - 32.0);
+    let r = (x * x + y * y + 1200.0f64 * 1200.0).sqrt();
+    assert!((f[0] - (1200.0 / r).powi(3)).abs() < 1e-12);
+}

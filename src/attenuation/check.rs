@@ -19,7 +19,11 @@ use super::{Setup, parts};
 const MAX_FINDINGS: usize = 10;
 
 /// Every placement problem of every run, as errors at the bead's phantom.
-pub fn check_runs(loaded: &LoadedScenario, models: &[PhantomModel], setup: &Setup) -> Vec<Diagnostic> {
+pub fn check_runs(
+    loaded: &LoadedScenario,
+    models: &[PhantomModel],
+    setup: &Setup,
+) -> Vec<Diagnostic> {
     let s = &loaded.scenario;
     let bvhs: Vec<Option<Arc<MeshBvh>>> = models
         .iter()
@@ -49,7 +53,10 @@ pub fn check_runs(loaded: &LoadedScenario, models: &[PhantomModel], setup: &Setu
     if total > MAX_FINDINGS {
         out.push(loaded.locator.error(
             KeyPath::root().key("phantoms"),
-            format!("{} more bead placement problems in other runs", total - MAX_FINDINGS),
+            format!(
+                "{} more bead placement problems in other runs",
+                total - MAX_FINDINGS
+            ),
         ));
     }
     out

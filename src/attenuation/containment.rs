@@ -66,7 +66,12 @@ pub fn in_cylinder(centre: DVec3, radius_mm: f64, radii: [f64; 2], half_length: 
 /// parity of crossings of a ray (a fixed, irrational direction, so it misses edges and vertices
 /// of any practical mesh), the distance to the surface as the least distance to a triangle.
 pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
-    let dir = DVec3::new(0.577_215_664_901_532_9, 0.301_029_995_663_981_2, 0.759_134_453_1).normalize();
+    let dir = DVec3::new(
+        0.577_215_664_901_532_9,
+        0.301_029_995_663_981_2,
+        0.759_134_453_1,
+    )
+    .normalize();
     let mut crossings = 0u32;
     let mut distance = f64::INFINITY;
     let v = |i: u32| DVec3::from_array(mesh.vertices[i as usize].map(f64::from));
@@ -144,9 +149,18 @@ mod tests {
     fn cuboid_placement_is_exact() {
         let h = DVec3::new(10.0, 5.0, 4.0);
         assert_eq!(in_cuboid(DVec3::ZERO, 0.5, h), Placement::Inside);
-        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 3.5), 0.5, h), Placement::Inside);
-        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 3.6), 0.5, h), Placement::Across);
-        assert_eq!(in_cuboid(DVec3::new(0.0, 0.0, 4.5), 0.5, h), Placement::Outside);
+        assert_eq!(
+            in_cuboid(DVec3::new(0.0, 0.0, 3.5), 0.5, h),
+            Placement::Inside
+        );
+        assert_eq!(
+            in_cuboid(DVec3::new(0.0, 0.0, 3.6), 0.5, h),
+            Placement::Across
+        );
+        assert_eq!(
+            in_cuboid(DVec3::new(0.0, 0.0, 4.5), 0.5, h),
+            Placement::Outside
+        );
         // Off a corner: distance √(0.3²·3) ≈ 0.52 > 0.5.
         assert_eq!(in_cuboid(h + DVec3::splat(0.3), 0.5, h), Placement::Outside);
         assert_eq!(in_cuboid(h + DVec3::splat(0.2), 0.5, h), Placement::Across);
@@ -155,30 +169,66 @@ mod tests {
     #[test]
     fn cylinder_placement_for_a_circle_is_exact() {
         let r = [20.0, 20.0];
-        assert_eq!(in_cylinder(DVec3::new(19.4, 0.0, 0.0), 0.5, r, 50.0), Placement::Inside);
-        assert_eq!(in_cylinder(DVec3::new(19.6, 0.0, 0.0), 0.5, r, 50.0), Placement::Across);
-        assert_eq!(in_cylinder(DVec3::new(20.6, 0.0, 0.0), 0.5, r, 50.0), Placement::Outside);
-        assert_eq!(in_cylinder(DVec3::new(0.0, 0.0, 49.6), 0.5, r, 50.0), Placement::Across);
+        assert_eq!(
+            in_cylinder(DVec3::new(19.4, 0.0, 0.0), 0.5, r, 50.0),
+            Placement::Inside
+        );
+        assert_eq!(
+            in_cylinder(DVec3::new(19.6, 0.0, 0.0), 0.5, r, 50.0),
+            Placement::Across
+        );
+        assert_eq!(
+            in_cylinder(DVec3::new(20.6, 0.0, 0.0), 0.5, r, 50.0),
+            Placement::Outside
+        );
+        assert_eq!(
+            in_cylinder(DVec3::new(0.0, 0.0, 49.6), 0.5, r, 50.0),
+            Placement::Across
+        );
     }
 
     #[test]
     fn mesh_placement_matches_the_sphere_it_approximates() {
         // A fine UV sphere of radius 10: its surface lies within 0.02 mm of the true sphere.
         let m = TriMesh::uv_sphere(10.0, 64, 128);
-        assert_eq!(in_mesh(DVec3::new(0.0, 0.0, 0.0), 0.5, &m), Placement::Inside);
-        assert_eq!(in_mesh(DVec3::new(9.3, 0.0, 0.0), 0.5, &m), Placement::Inside);
-        assert_eq!(in_mesh(DVec3::new(9.8, 0.0, 0.0), 0.5, &m), Placement::Across);
-        assert_eq!(in_mesh(DVec3::new(0.0, 10.2, 0.0), 0.5, &m), Placement::Across);
-        assert_eq!(in_mesh(DVec3::new(0.0, 0.0, -11.0), 0.5, &m), Placement::Outside);
-        assert_eq!(in_mesh(DVec3::new(30.0, 0.0, 0.0), 0.5, &m), Placement::Outside);
+        assert_eq!(
+            in_mesh(DVec3::new(0.0, 0.0, 0.0), 0.5, &m),
+            Placement::Inside
+        );
+        assert_eq!(
+            in_mesh(DVec3::new(9.3, 0.0, 0.0), 0.5, &m),
+            Placement::Inside
+        );
+        assert_eq!(
+            in_mesh(DVec3::new(9.8, 0.0, 0.0), 0.5, &m),
+            Placement::Across
+        );
+        assert_eq!(
+            in_mesh(DVec3::new(0.0, 10.2, 0.0), 0.5, &m),
+            Placement::Across
+        );
+        assert_eq!(
+            in_mesh(DVec3::new(0.0, 0.0, -11.0), 0.5, &m),
+            Placement::Outside
+        );
+        assert_eq!(
+            in_mesh(DVec3::new(30.0, 0.0, 0.0), 0.5, &m),
+            Placement::Outside
+        );
     }
 
     #[test]
     fn point_triangle_distance_covers_face_edge_and_vertex_regions() {
         let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
         assert!((point_triangle_distance(DVec3::new(0.2, 0.2, 3.0), a, b, c) - 3.0).abs() < 1e-15);
-        assert!((point_triangle_distance(DVec3::new(-1.0, -1.0, 0.0), a, b, c) - 2f64.sqrt()).abs() < 1e-15);
+        assert!(
+            (point_triangle_distance(DVec3::new(-1.0, -1.0, 0.0), a, b, c) - 2f64.sqrt()).abs()
+                < 1e-15
+        );
         assert!((point_triangle_distance(DVec3::new(0.5, -2.0, 0.0), a, b, c) - 2.0).abs() < 1e-15);
-        assert!((point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), a, b, c) - 0.5f64.sqrt()).abs() < 1e-15);
+        assert!(
+            (point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), a, b, c) - 0.5f64.sqrt()).abs()
+                < 1e-15
+        );
     }
 }

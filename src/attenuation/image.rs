@@ -130,7 +130,10 @@ pub fn render(
                     if l > 0.0 {
                         covered += 1;
                         let cols = (pl.columns.end - pl.columns.start) as usize;
-                        let (i, j) = (pl.columns.start as usize + k % cols, pl.rows.start as usize + k / cols);
+                        let (i, j) = (
+                            pl.columns.start as usize + k % cols,
+                            pl.rows.start as usize + k / cols,
+                        );
                         if metal.get(j * w + i).is_some_and(|&x| x > 0.0) {
                             over_metal += 1;
                         }
@@ -151,7 +154,11 @@ pub fn render(
                 phantom: part.phantom,
                 bead,
                 occluded,
-                metal_fraction: if covered == 0 { 0.0 } else { over_metal as f64 / covered as f64 },
+                metal_fraction: if covered == 0 {
+                    0.0
+                } else {
+                    over_metal as f64 / covered as f64
+                },
             })
         })
         .collect();

@@ -42,7 +42,12 @@ pub fn parts<'a>(
     let in_beam: Vec<usize> = exposure
         .phantoms
         .iter()
-        .map(|id| models.iter().position(|m| &m.id == id).expect("validated phantom id"))
+        .map(|id| {
+            models
+                .iter()
+                .position(|m| &m.id == id)
+                .expect("validated phantom id")
+        })
         .collect();
     let mut parts: Vec<Part<'a>> = Vec::new();
     // First volume part of each phantom, for `inside`.
@@ -55,11 +60,17 @@ pub fn parts<'a>(
                     bvh: bvhs[pi].as_deref().expect("mesh phantoms have a BVH"),
                     pose,
                 },
-                VolumeShape::Cuboid { pose: local, half_size_mm } => Object::Cuboid {
+                VolumeShape::Cuboid {
+                    pose: local,
+                    half_size_mm,
+                } => Object::Cuboid {
                     pose: pose.compose(local),
                     half_size_mm: *half_size_mm,
                 },
-                VolumeShape::EllipticCylinder { radii_mm, half_length_mm } => Object::EllipticCylinder {
+                VolumeShape::EllipticCylinder {
+                    radii_mm,
+                    half_length_mm,
+                } => Object::EllipticCylinder {
                     pose,
                     radii_mm: *radii_mm,
                     half_length_mm: *half_length_mm,
@@ -68,7 +79,11 @@ pub fn parts<'a>(
             first_volume[pi].get_or_insert(parts.len());
             parts.push(Part {
                 object,
-                material: setup.index(v.material.as_deref().expect("validated: volumes have a material")),
+                material: setup.index(
+                    v.material
+                        .as_deref()
+                        .expect("validated: volumes have a material"),
+                ),
                 parent: None,
                 label: v.label.clone(),
                 phantom: pi,
@@ -116,25 +131,38 @@ pub fn parts<'a>(
                             // Clear of the mesh's bounding box: outside, no triangle to test.
                             Placement::Outside
                         } else {
-                            let mesh = models[parts[vi].phantom].mesh.as_ref().expect("mesh volume");
+                            let mesh = models[parts[vi].phantom]
+                                .mesh
+                                .as_ref()
+                                .expect("mesh volume");
                             containment::in_mesh(local, r, mesh)
                         }
                     }
                     Object::Cuboid { pose, half_size_mm } => {
                         containment::in_cuboid(pose.to_local(m.position_mm), r, *half_size_mm)
                     }
-                    Object::EllipticCylinder { pose, radii_mm, half_length_mm } => {
-                        containment::in_cylinder(pose.to_local(m.position_mm), r, *radii_mm, *half_length_mm)
-                    }
+                    Object::EllipticCylinder {
+                        pose,
+                        radii_mm,
+                        half_length_mm,
+                    } => containment::in_cylinder(
+                        pose.to_local(m.position_mm),
+                        r,
+                        *radii_mm,
+                        *half_length_mm,
+                    ),
                     Object::Sphere { .. } => Placement::Outside,
                 };
                 match placement {
                     Placement::Outside => {}
                     Placement::Across => {
-                        return Err((pi, format!(
-                            "bead {label} crosses the surface of {} in run {} (exposure {}): a bead must lie wholly inside or wholly outside every volume",
-                            parts[vi].label, run.id, exposure.id
-                        )));
+                        return Err((
+                            pi,
+                            format!(
+                                "bead {label} crosses the surface of {} in run {} (exposure {}): a bead must lie wholly inside or wholly outside every volume",
+                                parts[vi].label, run.id, exposure.id
+                            ),
+                        ));
                     }
                     Placement::Inside => {
                         host = match host {
@@ -142,10 +170,13 @@ pub fn parts<'a>(
                             Some(h) if depth(&parts, vi) > depth(&parts, h) => Some(vi),
                             Some(h) if depth(&parts, vi) < depth(&parts, h) => Some(h),
                             Some(h) => {
-                                return Err((pi, format!(
-                                    "bead {label} lies inside both {} and {} in run {}, which do not nest: declare one `inside` the other, or keep the volumes apart",
-                                    parts[h].label, parts[vi].label, run.id
-                                )));
+                                return Err((
+                                    pi,
+                                    format!(
+                                        "bead {label} lies inside both {} and {} in run {}, which do not nest: declare one `inside` the other, or keep the volumes apart",
+                                        parts[h].label, parts[vi].label, run.id
+                                    ),
+                                ));
                             }
                         };
                     }

@@ -58,7 +58,10 @@ pub struct Setup {
 impl Setup {
     /// Resolves the imaging of `loaded` (attenuation mode) with its phantoms. Errors name the
     /// scenario key.
-    pub fn build(loaded: &LoadedScenario, models: &[PhantomModel]) -> Result<Setup, Vec<Diagnostic>> {
+    pub fn build(
+        loaded: &LoadedScenario,
+        models: &[PhantomModel],
+    ) -> Result<Setup, Vec<Diagnostic>> {
         let s = &loaded.scenario;
         let im = &s.imaging;
         let key = KeyPath::root().key("imaging");
@@ -69,7 +72,11 @@ impl Setup {
             Spectrum::monochromatic(e)
         } else if let Some(t) = &im.tube {
             let mut sp = Spectrum::tube(t.kvp, t.anode_angle_deg).map_err(|e| {
-                err(key.key("tube"), e, "kVp 40–150 (whole numbers), anode angles as listed in the README")
+                err(
+                    key.key("tube"),
+                    e,
+                    "kVp 40–150 (whole numbers), anode angles as listed in the README",
+                )
             })?;
             for f in &t.filtration {
                 let m = resolve(s, &f.material).expect("validated material");
@@ -100,7 +107,13 @@ impl Setup {
         let (names, materials) = materials_in_use(s, models);
         let mu_per_mm = materials
             .iter()
-            .map(|m| spectrum.energies_kev.iter().map(|&e| m.linear_attenuation_per_mm(e)).collect())
+            .map(|m| {
+                spectrum
+                    .energies_kev
+                    .iter()
+                    .map(|&e| m.linear_attenuation_per_mm(e))
+                    .collect()
+            })
             .collect();
         let efficiency = match &im.detector.scintillator {
             Some(sc) => {
@@ -171,7 +184,14 @@ impl Setup {
             ResponseKind::PhotonCounting => Response::PhotonCounting,
         };
         let gain = self.gain.unwrap_or_else(|| {
-            DetectorModel::auto_gain(&response, nominal, &self.efficiency, self.offset, self.white_level, i_max)
+            DetectorModel::auto_gain(
+                &response,
+                nominal,
+                &self.efficiency,
+                self.offset,
+                self.white_level,
+                i_max,
+            )
         });
         DetectorModel {
             response,
@@ -189,14 +209,16 @@ impl Setup {
     }
 }
 
-/// Density from which a volume counts as metal in the bead visibility truth, g/cm³ (titanium
-/// alloys 4.4, CoCr 8.3, steel 8.0, tantalum 16.7; cortical bone 1.9).
-pub const METAL_DENSITY_G_CM3: f64 = 4.0;
+pub use crate::material::METAL_DENSITY_G_CM3;
 
 /// A library or user material by name.
 pub fn resolve(s: &Scenario, name: &str) -> Option<Material> {
     if let Some(u) = s.materials.get(name) {
-        let fractions: Vec<(&str, f64)> = u.composition.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        let fractions: Vec<(&str, f64)> = u
+            .composition
+            .iter()
+            .map(|(k, v)| (k.as_str(), *v))
+            .collect();
         return Material::mixture(name, u.density_g_cm3, &fractions).ok();
     }
     material::by_name(name).cloned()
@@ -235,7 +257,8 @@ fn read_spectrum(loaded: &LoadedScenario, file: &str) -> Result<Spectrum, (Strin
     let bytes = c.read(&path, MAX_SPECTRUM_FILE_BYTES).map_err(|e| {
         (
             format!("cannot read the spectrum: {e}"),
-            "the spectrum file lies in the scenario's folder (or one allowed with --allow-dir)".to_string(),
+            "the spectrum file lies in the scenario's folder (or one allowed with --allow-dir)"
+                .to_string(),
         )
     })?;
     let shown = confine::shown_path(&path);
@@ -248,7 +271,8 @@ fn read_spectrum(loaded: &LoadedScenario, file: &str) -> Result<Spectrum, (Strin
     Spectrum::from_tsv(&text).map_err(|(line, why)| {
         (
             format!("spectrum {shown}, line {line}: {why}"),
-            "write one `energy_kev photons` pair per line (keV 1–200, increasing; photons ≥ 0)".to_string(),
+            "write one `energy_kev photons` pair per line (keV 1–200, increasing; photons ≥ 0)"
+                .to_string(),
         )
     })
 }

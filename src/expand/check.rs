@@ -6,7 +6,8 @@
 //! A bead counts as visible in an image when its centre projects inside the detector and the ray
 //! from the source through its centre to the detector crosses no mesh of that exposure. In the
 //! paper's binary images a bead whose ray crosses a mesh — in front of it or behind it — lies
-//! inside the mesh's shadow and cannot be told apart from it. The ray test uses the tracer's BVH
+//! inside the mesh's shadow and cannot be told apart from it (in attenuation mode only a metal
+//! mesh hides it: beads show through bone). The ray test uses the tracer's BVH
 //! ([`MeshBvh::segment_hits`]).
 
 use glam::DVec3;
@@ -133,6 +134,7 @@ fn check_run(
 ) -> Findings {
     let s = &loaded.scenario;
     let mut f = Findings::new(models, s.detectors.len());
+    let hides: Vec<bool> = models.iter().map(|m| hides_beads(s, m)).collect();
     for (pi, model) in models.iter().enumerate() {
         if !s.exposures.iter().any(|e| e.phantoms.contains(&model.id)) {
             continue;
@@ -216,7 +218,7 @@ fn check_run(
                         continue;
                     };
                     let end = frame.pose.to_world(frame.pixel_local(uv.x, uv.y));
-                    let hidden = in_beam.iter().any(|&pj| {
+                    let hidden = in_beam.iter().filter(|&&pj| hides[pj]).any(|&pj| {
                         bvhs[pj].as_ref().is_some_and(|bvh| {
                             let pose = run.phantoms[pj].pose();
                             let origin = pose.to_local(source);
@@ -231,6 +233,23 @@ fn check_run(
         }
     }
     f
+}
+
+/// Whether a phantom's mesh hides the beads in its shadow: always in binary mode (its shadow is
+/// I_max like a bead's); in attenuation mode only a metal one (density ≥
+/// [`crate::material::METAL_DENSITY_G_CM3`]), since beads show through bone and soft tissue.
+fn hides_beads(s: &crate::scenario::Scenario, model: &PhantomModel) -> bool {
+    if !s.imaging.is_attenuation() {
+        return true;
+    }
+    let Some(name) = model.volumes.first().and_then(|v| v.material.as_deref()) else {
+        return false;
+    };
+    let density = match s.materials.get(name) {
+        Some(user) => user.density_g_cm3,
+        None => crate::material::by_name(name).map_or(0.0, |m| m.density_g_cm3),
+    };
+    density >= crate::material::METAL_DENSITY_G_CM3
 }
 
 /// The key of a phantom's `k`-th bead, for beads the user listed; the phantom's id otherwise.

@@ -183,7 +183,13 @@ fn draw_pose(
 /// stream stays aligned). Validation guarantees the `fixed_to` chains end without a cycle.
 fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
     let mut poses: Vec<Option<Pose>> = vec![None; drawn.len()];
-    fn resolve(s: &Scenario, drawn: &[Pose], poses: &mut [Option<Pose>], i: usize, depth: usize) -> Pose {
+    fn resolve(
+        s: &Scenario,
+        drawn: &[Pose],
+        poses: &mut [Option<Pose>],
+        i: usize,
+        depth: usize,
+    ) -> Pose {
         if let Some(p) = poses[i] {
             return p;
         }
@@ -195,7 +201,10 @@ fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
         let pose = match parent {
             Some(k) if depth < s.phantoms.len() => {
                 let parent_pose = resolve(s, drawn, poses, k, depth + 1);
-                parent_pose.compose(&Pose::from_position_euler_deg(ph.position_mm, ph.rotation_deg))
+                parent_pose.compose(&Pose::from_position_euler_deg(
+                    ph.position_mm,
+                    ph.rotation_deg,
+                ))
             }
             _ => drawn[i],
         };
@@ -205,7 +214,10 @@ fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
     for i in 0..drawn.len() {
         resolve(s, &drawn, &mut poses, i, 0);
     }
-    poses.into_iter().map(|p| p.expect("every pose resolved")).collect()
+    poses
+        .into_iter()
+        .map(|p| p.expect("every pose resolved"))
+        .collect()
 }
 
 #[cfg(test)]

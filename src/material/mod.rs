@@ -29,3 +29,7 @@ pub use mixture::Material;
 pub const ENERGY_MIN_KEV: f64 = 1.0;
 /// The highest photon energy of the attenuation tables, in keV.
 pub const ENERGY_MAX_KEV: f64 = 200.0;
+
+/// Density from which a material counts as metal where bead visibility is judged, g/cm³
+/// (titanium alloys 4.4, CoCr 8.3, steel 8.0, tantalum 16.7; cortical bone 1.9).
+pub const METAL_DENSITY_G_CM3: f64 = 4.0;

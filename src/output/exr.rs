@@ -412,7 +412,10 @@ mod tests {
             let bytes = encode_exr_channels(
                 w,
                 h,
-                &[("pathlength_mm.metal", &metal), ("pathlength_mm.bone", &bone)],
+                &[
+                    ("pathlength_mm.metal", &metal),
+                    ("pathlength_mm.bone", &bone),
+                ],
                 &[],
                 compression,
             )
@@ -427,7 +430,16 @@ mod tests {
             let got: Vec<f32> = list[1].sample_data.values_as_f32().collect();
             assert!(same_bits(&got, &metal), "{compression:?}");
         }
-        assert!(encode_exr_channels(w, h, &[("a", &metal), ("a", &bone)], &[], ExrCompression::Zip).is_err());
+        assert!(
+            encode_exr_channels(
+                w,
+                h,
+                &[("a", &metal), ("a", &bone)],
+                &[],
+                ExrCompression::Zip
+            )
+            .is_err()
+        );
     }
 
     #[test]

@@ -185,7 +185,10 @@ pub fn build_with_warnings(
             mesh_file,
             mesh_package,
             volumes,
-            bead_material: ph.bead_material.clone().unwrap_or_else(|| "tantalum".into()),
+            bead_material: ph
+                .bead_material
+                .clone()
+                .unwrap_or_else(|| "tantalum".into()),
         });
     }
     if errors.is_empty() {

@@ -114,10 +114,17 @@ mod tests {
             thickness_mm: None,
             material: None,
         };
-        let b = CalibrationBox { plates: vec![plate.clone()] };
+        let b = CalibrationBox {
+            plates: vec![plate.clone()],
+        };
         assert!(plates("box", &b).is_empty());
         plate.thickness_mm = Some(8.0);
-        let v = plates("box", &CalibrationBox { plates: vec![plate] });
+        let v = plates(
+            "box",
+            &CalibrationBox {
+                plates: vec![plate],
+            },
+        );
         assert_eq!(v.len(), 1);
         assert_eq!(v[0].label, "box/F");
         assert_eq!(v[0].material.as_deref(), Some("pmma"));

@@ -54,7 +54,11 @@ impl Check<'_> {
 
     fn positive(&mut self, path: KeyPath, v: f64, what: &str, help: &str) {
         if !(v.is_finite() && v > 0.0) {
-            self.err(path, format!("{what} must be a positive number, got {v}"), help);
+            self.err(
+                path,
+                format!("{what} must be a positive number, got {v}"),
+                help,
+            );
         }
     }
 
@@ -65,7 +69,8 @@ impl Check<'_> {
 
     fn material_name(&mut self, path: KeyPath, name: &str) {
         if !self.known(name) {
-            let mut names: Vec<String> = material::library().iter().map(|m| m.name.clone()).collect();
+            let mut names: Vec<String> =
+                material::library().iter().map(|m| m.name.clone()).collect();
             names.extend(self.s.materials.keys().cloned());
             self.err(
                 path,
@@ -73,7 +78,11 @@ impl Check<'_> {
                 format!(
                     "use one of {}, or define it under [materials.{}]",
                     names.join(", "),
-                    if super::validate::id_problem(name).is_none() { name } else { "<name>" }
+                    if super::validate::id_problem(name).is_none() {
+                        name
+                    } else {
+                        "<name>"
+                    }
                 ),
             );
         }
@@ -96,7 +105,11 @@ impl Check<'_> {
                     "use letters, digits, `-`, `_` and `.`",
                 );
             }
-            let fractions: Vec<(&str, f64)> = m.composition.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+            let fractions: Vec<(&str, f64)> = m
+                .composition
+                .iter()
+                .map(|(k, v)| (k.as_str(), *v))
+                .collect();
             if let Err(why) = material::Material::mixture(name, m.density_g_cm3, &fractions) {
                 self.err(
                     path.key("composition"),
@@ -128,7 +141,11 @@ impl Check<'_> {
                     ),
                     Some(k) => {
                         let follow = |q: &Phantom| -> Option<String> {
-                            if key == "fixed_to" { q.fixed_to.clone() } else { q.inside.clone() }
+                            if key == "fixed_to" {
+                                q.fixed_to.clone()
+                            } else {
+                                q.inside.clone()
+                            }
                         };
                         // Walk the chain from the target; coming back to `i` is a cycle.
                         let mut at = k;
@@ -137,7 +154,10 @@ impl Check<'_> {
                                 Some(next) if next == i => {
                                     self.err(
                                         p.key(key),
-                                        format!("`{key}` forms a cycle through phantom `{}`", ids[k]),
+                                        format!(
+                                            "`{key}` forms a cycle through phantom `{}`",
+                                            ids[k]
+                                        ),
                                         "a chain of `{key}` must end at a phantom that names none",
                                     );
                                     break;
@@ -161,10 +181,17 @@ impl Check<'_> {
             }
             if ph.fixed_to.is_some() {
                 let r = &ph.randomize;
-                if r.position_mm.iter().chain(&r.rotation_deg).any(|&x| x != 0.0) {
+                if r.position_mm
+                    .iter()
+                    .chain(&r.rotation_deg)
+                    .any(|&x| x != 0.0)
+                {
                     self.err(
                         p.key("randomize"),
-                        format!("phantom `{}` is fixed to another and cannot be randomised itself", ph.id),
+                        format!(
+                            "phantom `{}` is fixed to another and cannot be randomised itself",
+                            ph.id
+                        ),
                         "remove its [randomize] table: it moves with the phantom named in fixed_to",
                     );
                 }
@@ -233,7 +260,9 @@ impl Check<'_> {
             );
         }
         if let Some(e) = im.energy_kev {
-            if !(e.is_finite() && (material::ENERGY_MIN_KEV..=material::ENERGY_MAX_KEV).contains(&e)) {
+            if !(e.is_finite()
+                && (material::ENERGY_MIN_KEV..=material::ENERGY_MAX_KEV).contains(&e))
+            {
                 self.err(
                     ip.key("energy_kev"),
                     format!("energy {e} keV is outside the attenuation tables"),
@@ -254,7 +283,12 @@ impl Check<'_> {
                     "give a whole number of kV from 40 to 150",
                 );
             }
-            self.positive(tp.key("anode_angle_deg"), t.anode_angle_deg, "the anode angle", "anode angles of X-ray tubes are about 6–22°");
+            self.positive(
+                tp.key("anode_angle_deg"),
+                t.anode_angle_deg,
+                "the anode angle",
+                "anode angles of X-ray tubes are about 6–22°",
+            );
             for (k, f) in t.filtration.iter().enumerate() {
                 let fp = tp.key("filtration").index(k);
                 self.material_name(fp.key("material"), &f.material);
@@ -278,7 +312,12 @@ impl Check<'_> {
                 }
             }
             (None, Some(m)) => {
-                self.positive(ip.key("mas"), m, "mas", "give the tube current-time product in mAs, e.g. 5");
+                self.positive(
+                    ip.key("mas"),
+                    m,
+                    "mas",
+                    "give the tube current-time product in mAs, e.g. 5",
+                );
                 if im.tube.is_none() {
                     self.err(
                         ip.key("mas"),
@@ -306,23 +345,46 @@ impl Check<'_> {
         let dp = ip.key("detector");
         if let Some(sc) = &d.scintillator {
             self.material_name(dp.key("scintillator").key("material"), &sc.material);
-            self.positive(dp.key("scintillator").key("thickness_mm"), sc.thickness_mm, "the scintillator thickness", "e.g. 0.6 mm of CsI");
+            self.positive(
+                dp.key("scintillator").key("thickness_mm"),
+                sc.thickness_mm,
+                "the scintillator thickness",
+                "e.g. 0.6 mm of CsI",
+            );
         }
         if let Some(g) = d.gain {
-            self.positive(dp.key("gain"), g, "the gain", "digital units per keV (energy integrating) or per photon (photon counting)");
+            self.positive(
+                dp.key("gain"),
+                g,
+                "the gain",
+                "digital units per keV (energy integrating) or per photon (photon counting)",
+            );
         }
         if let Some(w) = d.white_level {
             if !(w > 0.0 && w <= 1.0) {
-                self.err(dp.key("white_level"), format!("white_level {w} is outside (0, 1]"), "the open field reads white_level · I_max, e.g. 0.8");
+                self.err(
+                    dp.key("white_level"),
+                    format!("white_level {w} is outside (0, 1]"),
+                    "the open field reads white_level · I_max, e.g. 0.8",
+                );
             }
         }
         if let Some(o) = d.offset {
             if !(o.is_finite() && o >= 0.0 && o < 65535.0) {
-                self.err(dp.key("offset"), format!("offset {o} is out of range"), "give a dark offset in digital units, 0 or more and below I_max");
+                self.err(
+                    dp.key("offset"),
+                    format!("offset {o} is out of range"),
+                    "give a dark offset in digital units, 0 or more and below I_max",
+                );
             }
         }
         if let Some(r) = d.radiograph_range {
-            self.positive(dp.key("radiograph_range"), r, "radiograph_range", "the attenuation ln(S_open/S) shown white, e.g. 7");
+            self.positive(
+                dp.key("radiograph_range"),
+                r,
+                "radiograph_range",
+                "the attenuation ln(S_open/S) shown white, e.g. 7",
+            );
         }
         let pp = root().key("protocol");
         if self.written(&pp.key("noise_levels")) {
@@ -334,11 +396,19 @@ impl Check<'_> {
         }
         if let Some(levels) = &self.s.protocol.exposure_levels {
             if levels.is_empty() {
-                self.err(pp.key("exposure_levels"), "no exposure levels", "give at least one factor, e.g. [1.0]");
+                self.err(
+                    pp.key("exposure_levels"),
+                    "no exposure levels",
+                    "give at least one factor, e.g. [1.0]",
+                );
             }
             for (k, &f) in levels.iter().enumerate() {
                 if !(f.is_finite() && f > 0.0 && f <= 1e6) {
-                    self.err(pp.key("exposure_levels").index(k), format!("exposure factor {f} is out of range"), "each factor multiplies the exposure: give a number above 0 (at most 10⁶)");
+                    self.err(
+                        pp.key("exposure_levels").index(k),
+                        format!("exposure factor {f} is out of range"),
+                        "each factor multiplies the exposure: give a number above 0 (at most 10⁶)",
+                    );
                 }
             }
         }
@@ -371,7 +441,10 @@ impl Check<'_> {
                 if let Some(m) = &plate.material {
                     self.material_name(pp.key("material"), m);
                     if plate.thickness_mm.is_none() {
-                        self.warn(pp.key("material"), "the plate has no thickness_mm, so no plate material is simulated");
+                        self.warn(
+                            pp.key("material"),
+                            "the plate has no thickness_mm, so no plate material is simulated",
+                        );
                     }
                 }
                 if let Some(t) = plate.thickness_mm {
@@ -410,19 +483,32 @@ phantoms = ["c"]
 "#;
 
     fn messages(extra: &str) -> Vec<String> {
-        match from_text(&format!("{BASE}{extra}"), Path::new("s.toml"), Path::new(".")) {
+        match from_text(
+            &format!("{BASE}{extra}"),
+            Path::new("s.toml"),
+            Path::new("."),
+        ) {
             Ok(l) => l.warnings.iter().map(|d| format!("warning: {d}")).collect(),
             Err(e) => e.iter().map(|d| d.to_string()).collect(),
         }
     }
 
-    const CYL: &str = "[[phantoms]]\nid = \"c\"\nelliptic_cylinder = { radii_mm = [60, 50], length_mm = 200 }\n";
+    const CYL: &str =
+        "[[phantoms]]\nid = \"c\"\nelliptic_cylinder = { radii_mm = [60, 50], length_mm = 200 }\n";
 
     #[test]
     fn attenuation_needs_a_source_spectrum_an_exposure_and_materials() {
         let m = messages(&format!("[imaging]\nmode = \"attenuation\"\n{CYL}"));
-        assert!(m.iter().any(|x| x.contains("exactly one of imaging.energy_kev")), "{m:?}");
-        assert!(m.iter().any(|x| x.contains("photons_per_pixel and imaging.mas")), "{m:?}");
+        assert!(
+            m.iter()
+                .any(|x| x.contains("exactly one of imaging.energy_kev")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.contains("photons_per_pixel and imaging.mas")),
+            "{m:?}"
+        );
         assert!(m.iter().any(|x| x.contains("needs a material")), "{m:?}");
     }
 
@@ -439,7 +525,13 @@ phantoms = ["c"]
         let m = messages(&format!(
             "[imaging]\nmode = \"attenuation\"\nenergy_kev = 60\nphotons_per_pixel = 1000\n{CYL}material = \"unobtainium\"\n"
         ));
-        assert!(m.iter().any(|x| x.contains("no material is named `unobtainium`") && x.contains("soft_tissue") && x.contains("s.toml:22:12")), "{m:?}");
+        assert!(
+            m.iter()
+                .any(|x| x.contains("no material is named `unobtainium`")
+                    && x.contains("soft_tissue")
+                    && x.contains("s.toml:22:12")),
+            "{m:?}"
+        );
     }
 
     #[test]
@@ -454,14 +546,27 @@ phantoms = ["c"]
         ));
         assert!(m.is_empty(), "{m:?}");
         let m = messages(&format!("[protocol]\nexposure_levels = [1.0]\n{CYL}"));
-        assert!(m.iter().any(|x| x.contains("binary mode has noise_levels")), "{m:?}");
+        assert!(
+            m.iter().any(|x| x.contains("binary mode has noise_levels")),
+            "{m:?}"
+        );
     }
 
     #[test]
     fn attenuation_keys_in_binary_mode_are_warned_about() {
-        let m = messages(&format!("[imaging]\nenergy_kev = 60\n{CYL}material = \"water\"\n"));
-        assert!(m.iter().any(|x| x.starts_with("warning") && x.contains("imaging.energy_kev applies")), "{m:?}");
-        assert!(m.iter().any(|x| x.starts_with("warning") && x.contains("phantoms.material applies")), "{m:?}");
+        let m = messages(&format!(
+            "[imaging]\nenergy_kev = 60\n{CYL}material = \"water\"\n"
+        ));
+        assert!(
+            m.iter()
+                .any(|x| x.starts_with("warning") && x.contains("imaging.energy_kev applies")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.starts_with("warning") && x.contains("phantoms.material applies")),
+            "{m:?}"
+        );
     }
 
     #[test]
@@ -469,9 +574,16 @@ phantoms = ["c"]
         let two = "[[phantoms]]\nid = \"c\"\nelliptic_cylinder = { radii_mm = [60, 50], length_mm = 200 }\nfixed_to = \"b\"\n[[phantoms]]\nid = \"b\"\nelliptic_cylinder = { radii_mm = [6, 5], length_mm = 20 }\nfixed_to = \"c\"\n[phantoms.randomize]\nposition_mm = [1, 0, 0]\n";
         let m = messages(two);
         assert!(m.iter().any(|x| x.contains("forms a cycle")), "{m:?}");
-        assert!(m.iter().any(|x| x.contains("cannot be randomised")), "{m:?}");
+        assert!(
+            m.iter().any(|x| x.contains("cannot be randomised")),
+            "{m:?}"
+        );
         let m = messages(&format!("{CYL}inside = \"nobody\"\n"));
-        assert!(m.iter().any(|x| x.contains("no phantom has the id `nobody`")), "{m:?}");
+        assert!(
+            m.iter()
+                .any(|x| x.contains("no phantom has the id `nobody`")),
+            "{m:?}"
+        );
     }
 
     #[test]
@@ -479,8 +591,16 @@ phantoms = ["c"]
         let m = messages(&format!(
             "[materials.water]\ndensity_g_cm3 = 1\ncomposition = {{ H = 0.5, O = 0.4 }}\n{CYL}"
         ));
-        assert!(m.iter().any(|x| x.contains("already a material of the shipped library")), "{m:?}");
-        assert!(m.iter().any(|x| x.contains("materials.water.composition") || x.contains("composition")), "{m:?}");
+        assert!(
+            m.iter()
+                .any(|x| x.contains("already a material of the shipped library")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.contains("materials.water.composition") || x.contains("composition")),
+            "{m:?}"
+        );
     }
 
     #[test]
@@ -488,6 +608,9 @@ phantoms = ["c"]
         let m = messages(
             "[imaging]\nmode = \"attenuation\"\nenergy_kev = 60\nphotons_per_pixel = 1000\n[[phantoms]]\nid = \"c\"\n[[phantoms.calibration_box.plates]]\nid = \"F\"\nrole = \"fiducial\"\ncenter_mm = [0, 0, 0]\nsize_mm = [50, 50]\ngrid = [2, 2]\nspacing_mm = [10, 10]\nthickness_mm = 0.5\n",
         );
-        assert!(m.iter().any(|x| x.contains("cannot hold its 1 mm beads")), "{m:?}");
+        assert!(
+            m.iter().any(|x| x.contains("cannot hold its 1 mm beads")),
+            "{m:?}"
+        );
     }
 }

@@ -5,8 +5,8 @@ use std::fmt::Write;
 
 use super::markdown::unicode_minus_numbers;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, iso, mark, n_note, svg,
-    trueness_precision, unicode_minus, usual_n,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, iso, mark, n_note, svg, trueness_precision,
+    unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
@@ -178,11 +178,7 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
     for row in &table.rows {
         let usual = usual_n(row);
         let n = usual.map_or("—".to_string(), |n| n.to_string());
-        let _ = write!(
-            s,
-            "<tr><th>{}</th><td>{n}</td>",
-            esc(&row.level_text())
-        );
+        let _ = write!(s, "<tr><th>{}</th><td>{n}</td>", esc(&row.level_text()));
         for (i, c) in row.cells.iter().enumerate() {
             let mut classes: Vec<&str> = Vec::new();
             let body = match c {

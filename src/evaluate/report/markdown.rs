@@ -4,8 +4,8 @@ use std::fmt::Write;
 
 use super::iso;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, n_note,
-    trueness_precision, unicode_minus, usual_n,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, n_note, trueness_precision,
+    unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
