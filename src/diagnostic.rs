@@ -260,7 +260,20 @@ impl Locator {
     /// The span of the value at `path`, or of its deepest ancestor that is present (a missing
     /// key points at the table that should hold it).
     pub fn span_of(&self, path: &KeyPath) -> Option<Range<usize>> {
-        let root = self.root.as_ref()?;
+        self.walk(path).0
+    }
+
+    /// Whether the document holds a value at exactly `path` (the user wrote it).
+    pub fn has(&self, path: &KeyPath) -> bool {
+        self.walk(path).1
+    }
+
+    /// Follows `path` down the document: the span of the deepest value reached, and whether the
+    /// whole path was found.
+    fn walk(&self, path: &KeyPath) -> (Option<Range<usize>>, bool) {
+        let Some(root) = self.root.as_ref() else {
+            return (None, false);
+        };
         let mut span = None;
         let mut table: Option<&DeTable> = Some(root.get_ref());
         let mut value: Option<&Spanned<DeValue>> = None;
@@ -270,7 +283,9 @@ impl Locator {
                 (Segment::Index(i), _, Some(DeValue::Array(a))) => a.get(*i),
                 _ => None,
             };
-            let Some(next) = next else { break };
+            let Some(next) = next else {
+                return (span, false);
+            };
             span = Some(next.span());
             table = match next.get_ref() {
                 DeValue::Table(t) => Some(t),
@@ -278,30 +293,7 @@ impl Locator {
             };
             value = Some(next);
         }
-        span
-    }
-
-    /// Whether the document holds a value at exactly `path` (the user wrote it).
-    pub fn has(&self, path: &KeyPath) -> bool {
-        let Some(root) = self.root.as_ref() else {
-            return false;
-        };
-        let mut table: Option<&DeTable> = Some(root.get_ref());
-        let mut value: Option<&Spanned<DeValue>> = None;
-        for seg in &path.0 {
-            let next = match (seg, table, value.map(|v| v.get_ref())) {
-                (Segment::Key(k), Some(t), _) => t.get(k.as_str()),
-                (Segment::Index(i), _, Some(DeValue::Array(a))) => a.get(*i),
-                _ => None,
-            };
-            let Some(next) = next else { return false };
-            table = match next.get_ref() {
-                DeValue::Table(t) => Some(t),
-                _ => None,
-            };
-            value = Some(next);
-        }
-        true
+        (span, true)
     }
 
     /// The key path of the innermost key or value whose span contains byte `offset`.

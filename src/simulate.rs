@@ -515,16 +515,7 @@ fn write_run(
     let truth_dir = truth_root.join("runs").join(&run.id);
     std::fs::create_dir_all(&truth_dir)?;
     for exposure in &run.exposures {
-        let in_beam: Vec<usize> = exposure
-            .phantoms
-            .iter()
-            .map(|id| {
-                models
-                    .iter()
-                    .position(|m| &m.id == id)
-                    .expect("validated phantom id")
-            })
-            .collect();
+        let in_beam = exposure.phantom_indices(models);
         let mut objects = Vec::new();
         for &pi in &in_beam {
             let state = &run.phantoms[pi];

@@ -39,16 +39,7 @@ pub fn parts<'a>(
     run: &Run,
     exposure: &ExposureState,
 ) -> Result<Vec<Part<'a>>, (usize, String)> {
-    let in_beam: Vec<usize> = exposure
-        .phantoms
-        .iter()
-        .map(|id| {
-            models
-                .iter()
-                .position(|m| &m.id == id)
-                .expect("validated phantom id")
-        })
-        .collect();
+    let in_beam = exposure.phantom_indices(models);
     let mut parts: Vec<Part<'a>> = Vec::new();
     // First volume part of each phantom, for `inside`.
     let mut first_volume: Vec<Option<usize>> = vec![None; models.len()];

@@ -154,6 +154,21 @@ pub struct MarkerState {
     pub diameter_mm: f64,
 }
 
+impl ExposureState {
+    /// Indices into `models` (the run's phantoms, in scenario order) of the phantoms in the beam.
+    pub fn phantom_indices(&self, models: &[crate::phantom::PhantomModel]) -> Vec<usize> {
+        self.phantoms
+            .iter()
+            .map(|id| {
+                models
+                    .iter()
+                    .position(|m| &m.id == id)
+                    .expect("validated phantom id")
+            })
+            .collect()
+    }
+}
+
 /// An image set of the run: one image per detector of these phantoms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]

@@ -1,4 +1,5 @@
-//! Geometry shared by every stage: rigid poses, Euler angles, and the detector's pixel frame.
+//! Geometry shared by every stage: rigid poses, Euler angles, the detector's pixel frame, and the
+//! distance from a point to a triangle.
 //!
 //! Conventions (DESIGN.md, "Units and frames"): lengths in millimetres, angles in degrees at every
 //! boundary a person sees, radians only inside. A [`Pose`] maps local to world coordinates as
@@ -7,9 +8,11 @@
 //! so poses are bit-identical on every machine.
 
 mod detector;
+mod distance;
 mod pose;
 
 pub use detector::DetectorFrame;
+pub use distance::point_triangle_distance;
 pub use glam::{DMat3, DVec3};
 pub use pose::{Pose, euler_xyz_deg, rotation_from_rows, rotation_rows, rotation_xyz_deg};
 pub(crate) use pose::{mat3_rows_serde, vec3_serde};

@@ -18,39 +18,6 @@ fn vertex(m: &TriMesh, i: u32) -> DVec3 {
     DVec3::from_array(m.vertices[i as usize].map(f64::from))
 }
 
-/// Distance from `p` to triangle `abc` (closest point by Voronoi regions, Ericson §5.1.5).
-pub(crate) fn point_triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return ap.length();
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return bp.length();
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return (p - (a + ab * (d1 / (d1 - d3)))).length();
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return cp.length();
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return (p - (a + ac * (d2 / (d2 - d6)))).length();
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).length();
-    }
-    let denom = 1.0 / (va + vb + vc);
-    (p - (a + ab * (vb * denom) + ac * (vc * denom))).length()
-}
-
 /// Number of triangles a ray from `origin` along `dir` crosses (Möller–Trumbore, f64).
 fn crossings(m: &TriMesh, origin: DVec3, dir: DVec3) -> usize {
     m.triangles
@@ -189,7 +156,14 @@ fn beads_are_outside_clear_of_the_metal_and_well_spread() {
         let d = m
             .triangles
             .iter()
-            .map(|t| point_triangle_distance(p, vertex(m, t[0]), vertex(m, t[1]), vertex(m, t[2])))
+            .map(|t| {
+                crate::geometry::point_triangle_distance(
+                    p,
+                    vertex(m, t[0]),
+                    vertex(m, t[1]),
+                    vertex(m, t[2]),
+                )
+            })
             .fold(f64::INFINITY, f64::min);
         let gap = d - bead.diameter_mm / 2.0;
         eprintln!(

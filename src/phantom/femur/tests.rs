@@ -7,7 +7,7 @@ use glam::DVec3;
 use sha2::{Digest, Sha256};
 
 use super::*;
-use crate::phantom::femoral::tests::point_triangle_distance;
+use crate::geometry::point_triangle_distance;
 use crate::phantom::femoral::{FemoralComponent, femoral_component};
 use crate::trace::MeshBvh;
 
