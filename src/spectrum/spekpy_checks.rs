@@ -115,6 +115,40 @@ fn filtered_settings_match_spekpy() {
     }
 }
 
+/// What a scenario runs: the filtration and the HVL with the shipped material library's
+/// aluminium and copper (`crate::material`, xraylib/NIST), not SpekPy's own attenuation table.
+#[test]
+fn filtered_settings_match_spekpy_with_the_material_library() {
+    let al = crate::material::by_name("aluminium").unwrap();
+    let cu = crate::material::by_name("copper").unwrap();
+    for s in &checks().settings {
+        let what = format!(
+            "{} kVp {}° {} mm Al {} mm Cu",
+            s.kvp, s.angle_deg, s.al_mm, s.cu_mm
+        );
+        let beam = Spectrum::tube(s.kvp, s.angle_deg)
+            .unwrap()
+            .filtered(|e| al.linear_attenuation_per_mm(e), s.al_mm)
+            .filtered(|e| cu.linear_attenuation_per_mm(e), s.cu_mm);
+        let rel = beam.total_photons() / s.fluence - 1.0;
+        assert!(rel.abs() < 0.01, "{what}: filtered photons off by {rel:e}");
+        let de = beam.mean_energy_kev() - s.mean_energy_kev;
+        assert!(de.abs() < 0.2, "{what}: mean energy off by {de} keV");
+        if s.al_mm + s.cu_mm == 0.0 {
+            // An unfiltered beam's HVL (0.02 mm Al) is set by 1–5 keV photons, where the two
+            // attenuation tables differ by a few per cent around the Al K edge; no clinical beam.
+            continue;
+        }
+        let hvl = beam.hvl_mm(|e| al.linear_attenuation_per_mm(e));
+        let rel = hvl / s.hvl1_mm_al - 1.0;
+        assert!(
+            rel.abs() < 0.015,
+            "{what}: HVL {hvl} mm Al vs {}",
+            s.hvl1_mm_al
+        );
+    }
+}
+
 #[test]
 fn interpolation_between_angles_stays_within_the_documented_error() {
     let c = checks();
