@@ -423,6 +423,15 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
             mesh.file = format!("phantoms/{name}");
         }
     }
+    // A user spectrum goes with the output, like the meshes.
+    if let Some(bytes) = plan
+        .setup
+        .as_ref()
+        .and_then(|s| s.spectrum_file_bytes.as_ref())
+    {
+        out.push(manifest_entry(root, &dir.join("spectrum.tsv"), bytes)?);
+        resolved.imaging.spectrum_file = Some("phantoms/spectrum.tsv".into());
+    }
     let text = if nominal {
         nominal_scenario_text(&resolved)
     } else {
@@ -430,7 +439,7 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
             "# The scenario as run by {} (defaults resolved, mesh paths pointing at phantoms/).\n# Source file SHA-256: {}\n\n{}",
             output::program(),
             plan.loaded.sha256,
-            toml::to_string_pretty(&resolved).expect("scenario serialises")
+            scenario_toml(&resolved)
         )
     };
     out.push(manifest_entry(
@@ -441,12 +450,33 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
     Ok(out)
 }
 
+/// A resolved scenario as TOML. In attenuation mode the binary mode's default `noise_levels`
+/// are left out (the mode refuses them); binary mode's text is the records' own serialisation.
+fn scenario_toml(resolved: &Scenario) -> String {
+    if !resolved.imaging.is_attenuation() {
+        return toml::to_string_pretty(resolved).expect("scenario serialises");
+    }
+    let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
+    drop_binary_levels(resolved, &mut value);
+    toml::to_string_pretty(&value).expect("TOML tables serialise")
+}
+
+/// Removes `protocol.noise_levels` from an attenuation-mode scenario table.
+fn drop_binary_levels(resolved: &Scenario, value: &mut toml::Table) {
+    if resolved.imaging.is_attenuation() {
+        if let Some(toml::Value::Table(p)) = value.get_mut("protocol") {
+            p.remove("noise_levels");
+        }
+    }
+}
+
 /// The nominal set-up of a blind images folder as TOML: the scenario as run without `seed` and
 /// without any `randomize` table (the random ranges), so neither the draws nor the noise can be
 /// regenerated from it. `rsasim reconstruct` reads it like any `scenario.toml` (a missing seed
 /// reads as 0, missing ranges as none).
 pub fn nominal_scenario_text(resolved: &Scenario) -> String {
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
+    drop_binary_levels(resolved, &mut value);
     value.remove("seed");
     for list in ["sources", "detectors", "phantoms"] {
         if let Some(toml::Value::Array(items)) = value.get_mut(list) {

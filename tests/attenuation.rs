@@ -258,3 +258,33 @@ fn a_solid_poking_out_of_the_one_it_is_inside_is_an_error_naming_both() {
     assert!(err.contains("nothing was written"), "{err}");
     assert!(!out.exists(), "nothing half-written is left");
 }
+
+#[test]
+fn a_user_spectrum_travels_with_the_output_and_reconstruct_says_it_reads_binary_images_only() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("measured.tsv"),
+        "# a measured spectrum\nenergy_kev photons\n40 1\n50 3\n60 2\n",
+    )
+    .unwrap();
+    let text = water_cylinder("").replace("energy_kev = 60.0", "spectrum_file = \"measured.tsv\"");
+    let scenario = write(tmp.path(), "s.toml", &text);
+    let out = tmp.path().join("out");
+    let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read_to_string(out.join("phantoms/spectrum.tsv")).unwrap(),
+        std::fs::read_to_string(tmp.path().join("measured.tsv")).unwrap()
+    );
+    // The output's own scenario stands alone.
+    let o = rsasim(
+        &["validate", out.join("scenario.toml").to_str().unwrap()],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The reference program refuses clearly instead of measuring nonsense.
+    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("attenuation mode"), "{err}");
+}

@@ -53,6 +53,9 @@ pub struct Setup {
     pub mean_energy_kev: f64,
     /// Material names by index (for messages and EXR layers).
     pub names: Vec<String>,
+    /// The bytes of `spectrum_file` as read, for the output's `phantoms/` (so the output's own
+    /// `scenario.toml` stands alone).
+    pub spectrum_file_bytes: Option<Vec<u8>>,
 }
 
 impl Setup {
@@ -68,6 +71,7 @@ impl Setup {
         let err = |path: KeyPath, message: String, help: &str| {
             vec![loaded.locator.error(path, message).with_help(help)]
         };
+        let mut spectrum_file_bytes = None;
         let spectrum = if let Some(e) = im.energy_kev {
             Spectrum::monochromatic(e)
         } else if let Some(t) = &im.tube {
@@ -84,8 +88,10 @@ impl Setup {
             }
             sp
         } else if let Some(file) = &im.spectrum_file {
-            read_spectrum(loaded, file)
-                .map_err(|(m, h): (String, String)| err(key.key("spectrum_file"), m, &h))?
+            let (sp, bytes) = read_spectrum(loaded, file)
+                .map_err(|(m, h): (String, String)| err(key.key("spectrum_file"), m, &h))?;
+            spectrum_file_bytes = Some(bytes);
+            sp
         } else {
             unreachable!("validated: one spectrum source");
         };
@@ -147,6 +153,7 @@ impl Setup {
                 },
             },
             names,
+            spectrum_file_bytes,
         })
     }
 
@@ -250,7 +257,10 @@ fn materials_in_use(s: &Scenario, models: &[PhantomModel]) -> (Vec<String>, Vec<
 }
 
 /// Reads a user spectrum under the confinement rule.
-fn read_spectrum(loaded: &LoadedScenario, file: &str) -> Result<Spectrum, (String, String)> {
+fn read_spectrum(
+    loaded: &LoadedScenario,
+    file: &str,
+) -> Result<(Spectrum, Vec<u8>), (String, String)> {
     let path = loaded.base_dir.join(file);
     let c = confine::Confinement::new(&loaded.base_dir, &loaded.allowed_dirs)
         .map_err(|e| (e, "--allow-dir takes an existing folder".to_string()))?;
@@ -262,17 +272,18 @@ fn read_spectrum(loaded: &LoadedScenario, file: &str) -> Result<Spectrum, (Strin
         )
     })?;
     let shown = confine::shown_path(&path);
-    let text = String::from_utf8(bytes).map_err(|_| {
+    let text = String::from_utf8(bytes.clone()).map_err(|_| {
         (
             format!("spectrum {shown} is not UTF-8 text"),
             "write one `energy_kev photons` pair per line".to_string(),
         )
     })?;
-    Spectrum::from_tsv(&text).map_err(|(line, why)| {
+    let spectrum = Spectrum::from_tsv(&text).map_err(|(line, why)| {
         (
             format!("spectrum {shown}, line {line}: {why}"),
             "write one `energy_kev photons` pair per line (keV 1–200, increasing; photons ≥ 0)"
                 .to_string(),
         )
-    })
+    })?;
+    Ok((spectrum, bytes))
 }

@@ -186,6 +186,15 @@ fn ours_or_absent(file: &Path) -> bool {
 /// written.
 pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnostic>> {
     let setup = exam::load_setup(out)?;
+    if setup.scenario.imaging.is_attenuation() {
+        return Err(vec![
+            Diagnostic::file_error(
+                &out.join("scenario.toml"),
+                "this output is in attenuation mode; the reference program reads binary-mode images only (it finds beads and outlines at I_max)",
+            )
+            .with_help("run it on a binary-mode output, or score your own RSA software on these images with `rsasim evaluate`"),
+        ]);
+    }
     let runs = exam::run_folders(out)?;
     let label = model_label(&setup, options.model_method);
     let name = options
