@@ -5,7 +5,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{rsasim, run_scenario, truths};
+use common::{report_dir, rsasim, run_scenario, truths};
 use rsasim::evaluate::stats::{Cell, Confidence, Significance};
 use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
@@ -763,4 +763,22 @@ fn sha256_hex(bytes: &[u8]) -> String {
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect()
+}
+
+/// Attenuation mode: the report's rows are exposure levels (`×1`, `×0.25`), not noise levels.
+#[test]
+fn attenuation_reports_label_their_rows_by_exposure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("att");
+    run_scenario("scenarios/golden/small_attenuation.toml", &out, &[]);
+    for (k, (dir, truth)) in truths(&out).iter().enumerate() {
+        write_measured(dir, &measured_with_known_errors(truth, k));
+    }
+    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "md"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(report_dir(&out).join("report.md")).unwrap();
+    assert!(md.contains("| Exposure | N |"), "{md}");
+    assert!(md.contains("| ×1 |") && md.contains("| ×0.25 |"), "{md}");
+    assert!(md.contains("2 exposure level(s) (×1, ×0.25)"), "{md}");
+    assert!(!md.contains("| Noise |"));
 }
