@@ -138,6 +138,25 @@ def gvxr_geometry(gvxr, scene):
     gvxr.setDetectorPixelSize(*det["pixel_pitch_mm"], "mm")
 
 
+def gvxr_time(gvxr, image, repeats, noise, res):
+    """Times computeXRayImage into `image` (median of `repeats` after a warm-up), with or
+    without Poisson noise; stores xray_{clean,noise}_ms and _runs_ms in `res`."""
+    if noise:
+        gvxr.enablePoissonNoise()
+        gvxr.setmAs(1.0)
+    else:
+        gvxr.disablePoissonNoise()
+    gvxr.computeXRayImage(image)  # warm-up (shaders, buffers)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        gvxr.computeXRayImage(image)
+        times.append(time.perf_counter() - t)
+    key = "noise" if noise else "clean"
+    res[f"xray_{key}_ms"] = median_ms(times)
+    res[f"xray_{key}_runs_ms"] = [1e3 * x for x in times]
+
+
 def cmd_gvxr(args):
     import numpy as np
     from gvxrPython3 import gvxr
@@ -169,20 +188,7 @@ def cmd_gvxr(args):
         image = np.zeros((h, w), dtype=np.single)
         res = {"setup_ms": 1e3 * setup, "material": "CoCrMo 64/29/7 wt%, 8.3 g/cm3", "energy": "60 keV mono"}
         for noise in (False, True):
-            if noise:
-                gvxr.enablePoissonNoise()
-                gvxr.setmAs(1.0)
-            else:
-                gvxr.disablePoissonNoise()
-            gvxr.computeXRayImage(image)  # warm-up (shaders, buffers)
-            times = []
-            for _ in range(args.repeats):
-                t = time.perf_counter()
-                gvxr.computeXRayImage(image)
-                times.append(time.perf_counter() - t)
-            key = "noise" if noise else "clean"
-            res[f"xray_{key}_ms"] = median_ms(times)
-            res[f"xray_{key}_runs_ms"] = [1e3 * x for x in times]
+            gvxr_time(gvxr, image, args.repeats, noise, res)
             if not noise:
                 # Sanity check of the geometry: the shadow against rsasim's mask, allowing for a
                 # flip of the image axes (gVXR's row order need not match ours).

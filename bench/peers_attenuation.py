@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from peers import gvxr_geometry, machine, median_ms, pixel_rays, write_json
+from peers import gvxr_geometry, gvxr_time, machine, median_ms, pixel_rays, write_json
 
 SCENES = ("mono", "poly")
 
@@ -92,20 +92,7 @@ def cmd_gvxr(args):
         image = np.zeros((h, w), dtype=np.single)
         res = {"bins": len(sc["energies_kev"]), "material": f"{mat['name']}: Z {zs}, w {ws}, {mat['density_g_cm3']} g/cm3"}
         for noise in (False, True):
-            if noise:
-                gvxr.enablePoissonNoise()
-                gvxr.setmAs(1.0)
-            else:
-                gvxr.disablePoissonNoise()
-            gvxr.computeXRayImage(image)  # warm-up
-            times = []
-            for _ in range(args.repeats):
-                t = time.perf_counter()
-                gvxr.computeXRayImage(image)
-                times.append(time.perf_counter() - t)
-            key = "noise" if noise else "clean"
-            res[f"xray_{key}_ms"] = median_ms(times)
-            res[f"xray_{key}_runs_ms"] = [1e3 * x for x in times]
+            gvxr_time(gvxr, image, args.repeats, noise, res)
         gvxr.disablePoissonNoise()
         gvxr.computeXRayImage(image)
         clean = image.copy()
