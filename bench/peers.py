@@ -120,6 +120,43 @@ def cmd_embree(args):
     write_json(args.scene_dir, "embree", out)
 
 
+def gvxr_geometry(gvxr, scene):
+    """Point source and detector of `scene` (source_mm, detector as bench_scene writes them)."""
+    import numpy as np
+
+    det = scene["detector"]
+    rot = np.array(det["rotation"])  # rows; columns are r, c, s
+    gvxr.setSourcePosition(*scene["source_mm"], "mm")
+    gvxr.usePointSource()
+    gvxr.setDetectorPosition(*det["position_mm"], "mm")
+    # gVXR needs right × up to point towards the source: right = r, up = c (r × c = s).
+    # (With up = -c it renders nothing at all.) Its image then has our row order; the mask
+    # checks try the flips anyway.
+    gvxr.setDetectorUpVector(*rot[:, 1])
+    gvxr.setDetectorRightVector(*rot[:, 0])
+    gvxr.setDetectorNumberOfPixels(*det["pixels"])
+    gvxr.setDetectorPixelSize(*det["pixel_pitch_mm"], "mm")
+
+
+def gvxr_time(gvxr, image, repeats, noise, res):
+    """Times computeXRayImage into `image` (median of `repeats` after a warm-up), with or
+    without Poisson noise; stores xray_{clean,noise}_ms and _runs_ms in `res`."""
+    if noise:
+        gvxr.enablePoissonNoise()
+        gvxr.setmAs(1.0)
+    else:
+        gvxr.disablePoissonNoise()
+    gvxr.computeXRayImage(image)  # warm-up (shaders, buffers)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        gvxr.computeXRayImage(image)
+        times.append(time.perf_counter() - t)
+    key = "noise" if noise else "clean"
+    res[f"xray_{key}_ms"] = median_ms(times)
+    res[f"xray_{key}_runs_ms"] = [1e3 * x for x in times]
+
+
 def cmd_gvxr(args):
     import numpy as np
     from gvxrPython3 import gvxr
@@ -129,8 +166,6 @@ def cmd_gvxr(args):
     scene = load_scene(args.scene_dir)
     det = scene["detector"]
     w, h = det["pixels"]
-    rot = np.array(det["rotation"])  # rows; columns are r, c, s
-    r_axis, c_axis = rot[:, 0], rot[:, 1]
     out = {"peer": "gVirtualXray via gvxr " + version("gvxr"), "scenes": {}}
 
     t = time.perf_counter()
@@ -142,17 +177,8 @@ def cmd_gvxr(args):
     for name, sc in scene["scenes"].items():
         t = time.perf_counter()
         gvxr.removePolygonMeshesFromSceneGraph()
-        gvxr.setSourcePosition(*scene["source_mm"], "mm")
-        gvxr.usePointSource()
+        gvxr_geometry(gvxr, scene)
         gvxr.setMonoChromatic(60, "keV", 1000)
-        gvxr.setDetectorPosition(*det["position_mm"], "mm")
-        # gVXR needs right × up to point towards the source: right = r, up = c (r × c = s).
-        # (With up = -c it renders nothing at all.) Its image then has our row order; the mask
-        # check below tries the flips anyway.
-        gvxr.setDetectorUpVector(*c_axis)
-        gvxr.setDetectorRightVector(*r_axis)
-        gvxr.setDetectorNumberOfPixels(w, h)
-        gvxr.setDetectorPixelSize(*det["pixel_pitch_mm"], "mm")
         gvxr.loadMeshFile(name, str(Path(args.scene_dir) / sc["stl"]), "mm")
         # Atomic numbers: gvxr's setMixture with element symbols is "not yet implemented" and
         # leaves the mesh without a material (no attenuation at all).
@@ -162,20 +188,7 @@ def cmd_gvxr(args):
         image = np.zeros((h, w), dtype=np.single)
         res = {"setup_ms": 1e3 * setup, "material": "CoCrMo 64/29/7 wt%, 8.3 g/cm3", "energy": "60 keV mono"}
         for noise in (False, True):
-            if noise:
-                gvxr.enablePoissonNoise()
-                gvxr.setmAs(1.0)
-            else:
-                gvxr.disablePoissonNoise()
-            gvxr.computeXRayImage(image)  # warm-up (shaders, buffers)
-            times = []
-            for _ in range(args.repeats):
-                t = time.perf_counter()
-                gvxr.computeXRayImage(image)
-                times.append(time.perf_counter() - t)
-            key = "noise" if noise else "clean"
-            res[f"xray_{key}_ms"] = median_ms(times)
-            res[f"xray_{key}_runs_ms"] = [1e3 * x for x in times]
+            gvxr_time(gvxr, image, args.repeats, noise, res)
             if not noise:
                 # Sanity check of the geometry: the shadow against rsasim's mask, allowing for a
                 # flip of the image axes (gVXR's row order need not match ours).

@@ -19,26 +19,20 @@
 //! - `model.u16`: the protocol's model image (component + 6 beads) with noise, row-major
 //!   little-endian u16 counts, as rsasim writes into its TIFF.
 
+#[path = "common/export.rs"]
+mod export;
 #[path = "../benches/common/scenes.rs"]
 mod scenes;
 
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use rsasim::geometry::{DVec3, rotation_rows};
+use export::{arr, detector_json, write, write_triangles};
+use rsasim::geometry::rotation_rows;
 use rsasim::noise;
-use rsasim::phantom::mesh_io::write_stl;
 use rsasim::trace::{Object, render_binary, render_binary_traced};
 use scenes::{PlacedMesh, Scenes};
 use serde_json::{Value, json};
-
-fn arr(v: DVec3) -> [f64; 3] {
-    v.to_array()
-}
-
-fn write(path: PathBuf, bytes: &[u8]) {
-    fs::write(&path, bytes).unwrap_or_else(|e| panic!("cannot write {}: {e}", path.display()));
-}
 
 fn mask(image: &[u16]) -> Vec<u8> {
     image.iter().map(|&p| u8::from(p != 0)).collect()
@@ -46,18 +40,7 @@ fn mask(image: &[u16]) -> Vec<u8> {
 
 fn export_mesh(dir: &Path, s: &Scenes, name: &str, placed: &PlacedMesh) -> Value {
     let world = placed.world_mesh();
-    let mut tris = Vec::with_capacity(world.triangles.len() * 36);
-    for t in &world.triangles {
-        for &i in t {
-            for x in world.vertices[i as usize] {
-                tris.extend_from_slice(&x.to_le_bytes());
-            }
-        }
-    }
-    write(dir.join(format!("{name}.tris.f32")), &tris);
-    let mut stl = Vec::new();
-    write_stl(&world, &mut stl).expect("STL encoding");
-    write(dir.join(format!("{name}.stl")), &stl);
+    write_triangles(dir, name, &world);
     let objects: Vec<Object> = vec![placed.object()];
     let binary = render_binary(&s.frame, s.source, &objects, s.i_max);
     let traced = render_binary_traced(&s.frame, s.source, &objects, s.i_max);
@@ -97,8 +80,6 @@ fn main() {
     fs::create_dir_all(&dir).expect("create the output folder");
     let s = Scenes::load();
     let f = &s.frame;
-    let r = f.pose.rotation;
-    let [px, py] = f.pixel_pitch_mm;
 
     let femur = export_mesh(&dir, &s, "femur", &s.femur);
     let mut sphere = export_mesh(&dir, &s, "sphere", &s.sphere);
@@ -123,16 +104,7 @@ fn main() {
         "run": "n2-r07",
         "detector_id": "det1",
         "source_mm": arr(s.source),
-        "detector": {
-            "pixels": f.pixels,
-            "pixel_pitch_mm": f.pixel_pitch_mm,
-            "position_mm": arr(f.pose.position_mm),
-            "rotation": rotation_rows(&r),
-            "normal_towards_source": arr(r.col(2)),
-            "pixel00_centre_mm": arr(f.pixel_centre_world(0, 0)),
-            "step_u_mm": arr(r.col(0) * px),
-            "step_v_mm": arr(r.col(1) * py),
-        },
+        "detector": detector_json(f),
         "i_max": s.i_max,
         "noise_level": s.noise_level,
         "scenes": { "femur": femur, "sphere": sphere },

@@ -1,0 +1,262 @@
+//! Attenuation mode against its peers (`bench/attenuation.sh`): times `attenuation::render` for
+//! one image and exports what `bench/peers.py` needs to run gVirtualXray and Embree on the same
+//! scene.
+//!
+//! ```sh
+//! cargo run --release --example attenuation_bench -- DIR [REPEATS]
+//! ```
+//!
+//! Scenes (run 0, detector `det1`, exposure `model`):
+//! - `mono`: `bench/attenuation/mono.toml`, the femoral component alone (CoCr F75), 60 keV;
+//! - `poly`: `bench/attenuation/poly.toml`, the same with the 80 kVp / 2.5 mm Al spectrum;
+//! - `realistic`: `scenarios/biplanar_realistic.toml`, femoral component + cortical and
+//!   cancellous femur + soft tissue + 6 tantalum beads, 85 kVp (timing only).
+//!
+//! DIR receives `attenuation.json` (timings; per exported scene the source, the detector frame as
+//! in `examples/bench_scene.rs`, the energies, photons and detector efficiency per bin, the
+//! material names, densities and mass fractions, μ per material and bin) and per exported scene
+//! `NAME.stl` / `NAME.tris.f32` (the mesh in world coordinates), `NAME.lengths.f32` (the CoCr
+//! path length per pixel, mm, row-major little-endian f32, from `keep_lengths`),
+//! `NAME.image.u16` and `NAME.open.u16` (the detector image with and without the component) and
+//! `NAME.spectrum.tsv` (energy_kev, photons per bin).
+//!
+//! Timings: one warm-up, then the median of REPEATS (default 5) calls of `attenuation::render`
+//! on all of rayon's threads; the BVHs and the parts are built outside the timing.
+
+#[path = "common/export.rs"]
+mod export;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use export::{arr, detector_json, write, write_triangles};
+use rsasim::attenuation::{self, Part};
+use rsasim::geometry::DVec3;
+use rsasim::noise::NoiseKey;
+use rsasim::phantom::TriMesh;
+use rsasim::simulate::{self, Allowances, Plan};
+use rsasim::trace::MeshBvh;
+use serde_json::{Value, json};
+
+fn median_ms(mut samples: Vec<f64>) -> f64 {
+    samples.sort_by(f64::total_cmp);
+    let n = samples.len();
+    if n % 2 == 1 {
+        samples[n / 2]
+    } else {
+        0.5 * (samples[n / 2 - 1] + samples[n / 2])
+    }
+}
+
+fn plan(root: &Path, rel: &str) -> Plan {
+    let allow = Allowances {
+        dirs: vec![root.join("scenarios/models")],
+        large: true,
+    };
+    match simulate::prepare_with(&root.join(rel), &allow) {
+        Ok(p) => p,
+        Err(diags) => {
+            for d in diags {
+                eprintln!("{rel}: {d:?}");
+            }
+            std::process::exit(2);
+        }
+    }
+}
+
+fn u16_bytes(image: &[u16]) -> Vec<u8> {
+    image.iter().flat_map(|p| p.to_le_bytes()).collect()
+}
+
+/// Times (and for `export`, writes) one scene; returns its JSON record.
+fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export: bool) -> Value {
+    let plan = plan(root, rel);
+    let s = &plan.loaded.scenario;
+    let setup = plan.setup.as_ref().expect("an attenuation-mode scenario");
+    let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
+        .models
+        .iter()
+        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
+        .collect();
+    let run = &plan.runs[0];
+    let exposure = run
+        .exposures
+        .iter()
+        .find(|e| e.id == "model")
+        .expect("an exposure `model`");
+    let parts: Vec<Part> = attenuation::parts(s, setup, &plan.models, &bvhs, run, exposure)
+        .unwrap_or_else(|(_, e)| panic!("{rel}: {e}"));
+    let det = &run.detectors[0];
+    let frame = det.frame();
+    let source = run.source_of(det);
+    let key = NoiseKey::derive(
+        s.seed,
+        run.noise_level_index,
+        run.run_index,
+        &exposure.id,
+        &det.id,
+    );
+    let factor = run.exposure_factor.unwrap_or(1.0);
+    let render = |parts: &[Part], keep: bool| {
+        attenuation::render(
+            setup,
+            parts,
+            &frame,
+            source,
+            factor,
+            det.i_max(),
+            &key,
+            keep,
+        )
+        .unwrap_or_else(|e| panic!("{rel}: {e}"))
+    };
+    let first = render(&parts, export);
+    let mut times = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let image = render(&parts, false);
+        times.push(1e3 * t.elapsed().as_secs_f64());
+        assert_eq!(image.pixels, first.pixels, "render is deterministic");
+    }
+    let ms = median_ms(times.clone());
+    println!(
+        "rsasim {name}: attenuation::render {ms:.1} ms (median of {repeats}; {} threads), {} parts, {} bins",
+        rayon::current_num_threads(),
+        parts.len(),
+        setup.energies_kev.len()
+    );
+    let mut record = json!({
+        "scenario": rel,
+        "run": run.id,
+        "detector_id": det.id,
+        "exposure": exposure.id,
+        "parts": parts.len(),
+        "bins": setup.energies_kev.len(),
+        "render_ms": ms,
+        "render_runs_ms": times,
+        "threads": rayon::current_num_threads(),
+    });
+    if !export {
+        return record;
+    }
+    let femur = plan
+        .models
+        .iter()
+        .position(|m| m.mesh.is_some())
+        .expect("a mesh phantom");
+    let mesh = plan.models[femur].mesh.as_deref().expect("checked");
+    let pose = run.phantoms[femur].pose();
+    let world = TriMesh {
+        vertices: mesh
+            .vertices
+            .iter()
+            .map(|v| {
+                let w = pose.to_world(DVec3::from_array(v.map(f64::from)));
+                [w.x as f32, w.y as f32, w.z as f32]
+            })
+            .collect(),
+        triangles: mesh.triangles.clone(),
+    };
+    write_triangles(dir, name, &world);
+    let lengths = first.lengths_mm.as_ref().expect("kept lengths");
+    let m = setup.index(
+        &plan.models[femur].volumes[0]
+            .material
+            .clone()
+            .expect("a material"),
+    );
+    let l: Vec<u8> = lengths[m]
+        .iter()
+        .flat_map(|&x| (x as f32).to_le_bytes())
+        .collect();
+    write(dir.join(format!("{name}.lengths.f32")), &l);
+    write(
+        dir.join(format!("{name}.image.u16")),
+        &u16_bytes(&first.pixels),
+    );
+    let open = render(&[], false);
+    write(
+        dir.join(format!("{name}.open.u16")),
+        &u16_bytes(&open.pixels),
+    );
+    let total: f64 = setup.spectrum_photons.iter().sum();
+    let tsv: String = setup
+        .energies_kev
+        .iter()
+        .zip(&setup.spectrum_photons)
+        .map(|(e, n)| format!("{e:.6}\t{:.9e}\n", n / total))
+        .collect();
+    write(
+        dir.join(format!("{name}.spectrum.tsv")),
+        format!(
+            "# energy_kev\tphotons (fraction of the total), rsasim {}\n{tsv}",
+            env!("CARGO_PKG_VERSION")
+        )
+        .as_bytes(),
+    );
+    let materials: Vec<Value> = setup
+        .materials
+        .iter()
+        .zip(&setup.names)
+        .map(|(mat, n)| {
+            json!({
+                "name": n,
+                "density_g_cm3": mat.density_g_cm3,
+                "mass_fractions_z": mat.mass_fractions,
+            })
+        })
+        .collect();
+    let extra = json!({
+        "source_mm": arr(source),
+        "detector": detector_json(&frame),
+        "i_max": det.i_max(),
+        "stl": format!("{name}.stl"),
+        "tris_f32": format!("{name}.tris.f32"),
+        "lengths_f32": format!("{name}.lengths.f32"),
+        "image_u16": format!("{name}.image.u16"),
+        "open_u16": format!("{name}.open.u16"),
+        "spectrum_tsv": format!("{name}.spectrum.tsv"),
+        "material_index": m,
+        "materials": materials,
+        "energies_kev": setup.energies_kev,
+        "spectrum_photons": setup.spectrum_photons,
+        "efficiency": setup.efficiency,
+        "mu_per_mm": setup.mu_per_mm,
+        "response": format!("{:?}", setup.response),
+        "saturated": first.saturated,
+    });
+    if let (Value::Object(r), Value::Object(e)) = (&mut record, extra) {
+        r.extend(e);
+    }
+    record
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let dir = PathBuf::from(
+        args.next()
+            .expect("usage: cargo run --release --example attenuation_bench -- DIR [REPEATS]"),
+    );
+    let repeats: usize = args
+        .next()
+        .map_or(5, |r| r.parse().expect("REPEATS: a whole number"));
+    std::fs::create_dir_all(&dir).expect("create the output folder");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenes = json!({
+        "mono": scene(root, &dir, "mono", "bench/attenuation/mono.toml", repeats, true),
+        "poly": scene(root, &dir, "poly", "bench/attenuation/poly.toml", repeats, true),
+        "realistic": scene(root, &dir, "realistic", "scenarios/biplanar_realistic.toml", repeats, false),
+    });
+    let out = json!({
+        "format": "rsasim-attenuation-bench/1",
+        "rsasim_version": env!("CARGO_PKG_VERSION"),
+        "repeats": repeats,
+        "scenes": scenes,
+    });
+    write(
+        dir.join("attenuation.json"),
+        serde_json::to_string_pretty(&out).expect("JSON").as_bytes(),
+    );
+    println!("wrote {}", dir.display());
+}
