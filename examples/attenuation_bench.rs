@@ -243,11 +243,23 @@ fn main() {
         .map_or(5, |r| r.parse().expect("REPEATS: a whole number"));
     std::fs::create_dir_all(&dir).expect("create the output folder");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let scenes = json!({
-        "mono": scene(root, &dir, "mono", "bench/attenuation/mono.toml", repeats, true),
-        "poly": scene(root, &dir, "poly", "bench/attenuation/poly.toml", repeats, true),
-        "realistic": scene(root, &dir, "realistic", "scenarios/biplanar_realistic.toml", repeats, false),
-    });
+    // `ATTENUATION_BENCH_ONLY=mono` (a comma-separated list) times only those scenes, e.g. to
+    // profile one of them.
+    let only = std::env::var("ATTENUATION_BENCH_ONLY").ok();
+    let wanted = |name: &str| {
+        only.as_deref()
+            .is_none_or(|o| o.split(',').any(|n| n == name))
+    };
+    let mut scenes = serde_json::Map::new();
+    for (name, rel, export) in [
+        ("mono", "bench/attenuation/mono.toml", true),
+        ("poly", "bench/attenuation/poly.toml", true),
+        ("realistic", "scenarios/biplanar_realistic.toml", false),
+    ] {
+        if wanted(name) {
+            scenes.insert(name.into(), scene(root, &dir, name, rel, repeats, export));
+        }
+    }
     let out = json!({
         "format": "rsasim-attenuation-bench/1",
         "rsasim_version": env!("CARGO_PKG_VERSION"),
