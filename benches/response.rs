@@ -21,7 +21,8 @@ use glam::DVec3;
 use rsasim::geometry::{DetectorFrame, Pose};
 use rsasim::noise::NoiseKey;
 use rsasim::response::{
-    Beam, DetectorModel, Polarity, Response, Scene, expected_quanta, point_source_fluence, render,
+    Beam, DetectorModel, Fluence, Layer, Polarity, Response, Scene, expected_quanta,
+    point_source_fluence, render,
 };
 
 const N: usize = 1440;
@@ -92,6 +93,7 @@ fn bench(c: &mut Criterion) {
     let source = DVec3::new(0.0, 0.0, 1300.0);
     let fluence = point_source_fluence(&frame, source);
     let lengths = lengths();
+    let layers = Layer::images(N, N, &lengths);
     let key = NoiseKey::derive(1, 0, 0, "bench", "det");
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -119,8 +121,8 @@ fn bench(c: &mut Criterion) {
         width: N,
         height: N,
         mu_per_mm: mu,
-        lengths_mm: &lengths,
-        fluence: &fluence,
+        layers: &layers,
+        fluence: Fluence::Image(&fluence),
     };
     let mono_mu: &'static [Vec<f64>] = Box::leak(mono_mu.into_boxed_slice());
     let poly_mu: &'static [Vec<f64>] = Box::leak(poly_mu.into_boxed_slice());

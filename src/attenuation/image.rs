@@ -6,8 +6,10 @@ use glam::DVec3;
 
 use crate::geometry::DetectorFrame;
 use crate::noise::NoiseKey;
-use crate::response::{self, Scene};
-use crate::trace::{Object, path_lengths};
+use rayon::prelude::*;
+
+use crate::response::{self, Fluence, Layer, Scene};
+use crate::trace::{Object, PathLengths, path_lengths};
 
 use super::scene::Part;
 use super::setup::Setup;
@@ -44,6 +46,11 @@ pub struct AttenuationImage {
 }
 
 /// Renders the parts of one exposure on one detector at exposure factor `factor`.
+///
+/// Every part's path lengths over its shadow's rectangle become one layer of its material and,
+/// for a nested part, one negative layer of the material it displaces (parts in order); the
+/// response sums them per material row by row, so no W×H image per material is held unless
+/// `keep_lengths` asks for them.
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     setup: &Setup,
@@ -56,58 +63,21 @@ pub fn render(
     keep_lengths: bool,
 ) -> Result<AttenuationImage, String> {
     let [w, h] = frame.pixels.map(|n| n as usize);
-    let n = w * h;
-    let materials = setup.materials.len();
-    let mut lengths: Vec<Vec<f64>> = vec![Vec::new(); materials];
-    let mut metal: Vec<f64> = Vec::new();
-    let mut shadows = Vec::with_capacity(parts.len());
-    for part in parts {
-        let Some(pl) = path_lengths(frame, source_mm, &part.object) else {
-            shadows.push(None);
-            continue;
-        };
-        let targets = [(part.material, 1.0)]
-            .into_iter()
-            .chain(part.parent.map(|p| (parts[p].material, -1.0)));
-        for (m, sign) in targets {
-            let image = &mut lengths[m];
-            if image.is_empty() {
-                image.resize(n, 0.0);
-            }
-            add_rect(image, w, &pl, sign);
-        }
-        if part.bead.is_none() && setup.is_metal(part.material) {
-            if metal.is_empty() {
-                metal.resize(n, 0.0);
-            }
-            add_rect(&mut metal, w, &pl, 1.0);
-        }
-        shadows.push(if part.bead.is_some() { Some(pl) } else { None });
-    }
-    for (m, image) in lengths.iter_mut().enumerate() {
-        for (p, l) in image.iter_mut().enumerate() {
-            if *l < 0.0 {
-                if *l < -NEST_TOLERANCE_MM {
-                    let nested: Vec<&str> = parts
-                        .iter()
-                        .filter(|x| x.parent.is_some_and(|q| parts[q].material == m))
-                        .map(|x| x.label.as_str())
-                        .collect();
-                    return Err(format!(
-                        "at pixel ({}, {}) the ray crosses {:.4} mm more of the solids placed inside {} material than of the {} itself: {} not wholly inside the solid it is declared `inside`",
-                        p % w,
-                        p / w,
-                        -*l,
-                        setup.names[m],
-                        setup.names[m],
-                        nested.join(", ")
-                    ));
-                }
-                *l = 0.0;
-            }
+    // Parts in parallel (a mesh is scan-converted on one thread), each part's lengths its own.
+    let shadows: Vec<Option<PathLengths>> = parts
+        .par_iter()
+        .map(|part| path_lengths(frame, source_mm, &part.object))
+        .collect();
+    let mut layers = Vec::with_capacity(2 * parts.len());
+    for (part, shadow) in parts.iter().zip(&shadows) {
+        let Some(pl) = shadow else { continue };
+        layers.push(layer(part.material, 1.0, pl));
+        if let Some(p) = part.parent {
+            layers.push(layer(parts[p].material, -1.0, pl));
         }
     }
-    let fluence = response::point_source_fluence(frame, source_mm);
+    check_nesting(setup, parts, &layers, w)?;
+    let fluence = response::PointSourceFluence::new(frame, source_mm);
     let beam = setup.beam(frame, source_mm, factor);
     let nominal = setup.beam(frame, source_mm, 1.0);
     let detector = setup.detector(&nominal, i_max);
@@ -115,10 +85,18 @@ pub fn render(
         width: w,
         height: h,
         mu_per_mm: &setup.mu_per_mm,
-        lengths_mm: &lengths,
-        fluence: &fluence,
+        layers: &layers,
+        fluence: Fluence::PointSource(&fluence),
     };
     let rendered = response::render(&beam, &detector, &scene, key);
+    // Metal besides beads at a pixel: some metal volume's path length there is positive.
+    let metal_at = |i: u32, j: u32| {
+        parts.iter().zip(&shadows).any(|(part, shadow)| {
+            part.bead.is_none()
+                && setup.is_metal(part.material)
+                && shadow.as_ref().is_some_and(|pl| pl.at(i, j) > 0.0)
+        })
+    };
     let beads = parts
         .iter()
         .zip(&shadows)
@@ -126,15 +104,15 @@ pub fn render(
             let bead = part.bead?;
             let (mut covered, mut over_metal) = (0usize, 0usize);
             if let Some(pl) = shadow {
+                let cols = (pl.columns.end - pl.columns.start) as usize;
                 for (k, &l) in pl.length_mm.iter().enumerate() {
                     if l > 0.0 {
                         covered += 1;
-                        let cols = (pl.columns.end - pl.columns.start) as usize;
                         let (i, j) = (
-                            pl.columns.start as usize + k % cols,
-                            pl.rows.start as usize + k / cols,
+                            pl.columns.start + (k % cols) as u32,
+                            pl.rows.start + (k / cols) as u32,
                         );
-                        if metal.get(j * w + i).is_some_and(|&x| x > 0.0) {
+                        if metal_at(i, j) {
                             over_metal += 1;
                         }
                     }
@@ -144,10 +122,7 @@ pub fn render(
                 Object::Sphere { centre_mm, .. } => frame
                     .project(source_mm, *centre_mm)
                     .filter(|uv| frame.contains_pixel(*uv))
-                    .is_some_and(|uv| {
-                        let (i, j) = (uv.x.floor() as usize, uv.y.floor() as usize);
-                        metal.get(j * w + i).is_some_and(|&x| x > 0.0)
-                    }),
+                    .is_some_and(|uv| metal_at(uv.x.floor() as u32, uv.y.floor() as u32)),
                 _ => false,
             };
             Some(BeadVisibility {
@@ -162,30 +137,83 @@ pub fn render(
             })
         })
         .collect();
+    let lengths_mm = keep_lengths.then(|| {
+        (0..setup.materials.len())
+            .map(|m| net_lengths(&layers, m, w, h))
+            .collect()
+    });
     Ok(AttenuationImage {
         pixels: rendered.pixels,
         saturated: rendered.saturated,
         beads,
-        lengths_mm: keep_lengths.then(|| {
-            lengths
-                .into_iter()
-                .map(|l| if l.is_empty() { vec![0.0; n] } else { l })
-                .collect()
-        }),
+        lengths_mm,
     })
 }
 
-/// Adds `sign ×` a rectangle of path lengths into a full image of width `w`.
-fn add_rect(image: &mut [f64], w: usize, pl: &crate::trace::PathLengths, sign: f64) {
-    let cols = (pl.columns.end - pl.columns.start) as usize;
-    if cols == 0 {
-        return;
+/// The layer of `pl` added to (`sign` +1) or taken from (−1) material `material`.
+fn layer(material: usize, sign: f64, pl: &PathLengths) -> Layer<'_> {
+    Layer {
+        material,
+        sign,
+        columns: pl.columns.start as usize..pl.columns.end as usize,
+        rows: pl.rows.start as usize..pl.rows.end as usize,
+        length_mm: &pl.length_mm,
     }
-    for (r, row) in pl.length_mm.chunks(cols).enumerate() {
-        let j = pl.rows.start as usize + r;
-        let start = j * w + pl.columns.start as usize;
-        for (dst, &l) in image[start..start + cols].iter_mut().zip(row) {
-            *dst += sign * l;
+}
+
+/// Material `m`'s net path length on every pixel (W×H, row-major, mm): its layers summed, a
+/// negative sum (rounding) set to 0: the lengths the response uses.
+fn net_lengths(layers: &[Layer], m: usize, w: usize, h: usize) -> Vec<f64> {
+    let mut image = vec![0.0; w * h];
+    if w == 0 || !layers.iter().any(|l| l.material == m) {
+        return image;
+    }
+    image.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        let span = response::material_row(layers, m, j, row);
+        for l in &mut row[span] {
+            if *l < 0.0 {
+                *l = 0.0;
+            }
+        }
+    });
+    image
+}
+
+/// Fails when some pixel's net length of a material is below −[`NEST_TOLERANCE_MM`]: the solids
+/// declared inside it cross more of it than it has there. Looks only at the rows of the negative
+/// layers; reports the first such pixel by material, then row, then column.
+fn check_nesting(setup: &Setup, parts: &[Part], layers: &[Layer], w: usize) -> Result<(), String> {
+    for m in 0..setup.materials.len() {
+        let Some(rows) = layers
+            .iter()
+            .filter(|l| l.material == m && l.sign < 0.0)
+            .map(|l| l.rows.clone())
+            .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
+        else {
+            continue;
+        };
+        let found = rows.into_par_iter().find_map_first(|j| {
+            let mut row = vec![0.0; w];
+            let span = response::material_row(layers, m, j, &mut row);
+            row[span.clone()]
+                .iter()
+                .position(|&l| l < -NEST_TOLERANCE_MM)
+                .map(|k| (span.start + k, j, row[span.start + k]))
+        });
+        if let Some((i, j, l)) = found {
+            let nested: Vec<&str> = parts
+                .iter()
+                .filter(|x| x.parent.is_some_and(|q| parts[q].material == m))
+                .map(|x| x.label.as_str())
+                .collect();
+            return Err(format!(
+                "at pixel ({i}, {j}) the ray crosses {:.4} mm more of the solids placed inside {} material than of the {} itself: {} not wholly inside the solid it is declared `inside`",
+                -l,
+                setup.names[m],
+                setup.names[m],
+                nested.join(", ")
+            ));
         }
     }
+    Ok(())
 }

@@ -16,24 +16,74 @@ use crate::geometry::DetectorFrame;
 /// A source on the plane or behind the detector (on the side away from its normal `s`) gives
 /// no photons: every value is 0.
 pub fn point_source_fluence(frame: &DetectorFrame, source_mm: DVec3) -> Vec<f64> {
-    let [w, h] = frame.pixels;
-    let (w, h) = (w as usize, h as usize);
-    let s = frame.pose.to_local(source_mm);
-    let d = s.z;
-    if !(d > 0.0 && d.is_finite()) {
-        return vec![0.0; w * h];
-    }
-    let d2 = d * d;
-    let mut out = Vec::with_capacity(w * h);
-    for j in 0..h {
-        let y = frame.pixel_local(0.5, j as f64 + 0.5).y - s.y;
-        for i in 0..w {
-            let x = frame.pixel_local(i as f64 + 0.5, 0.5).x - s.x;
-            let c = d2 / (x * x + y * y + d2);
-            out.push(c * c.sqrt());
+    let f = PointSourceFluence::new(frame, source_mm);
+    let w = f.columns_mm.len();
+    let mut out = vec![0.0; w * f.rows_mm.len()];
+    if w > 0 {
+        for (j, row) in out.chunks_exact_mut(w).enumerate() {
+            f.row(j, row);
         }
     }
     out
+}
+
+/// The fluence `(D/r)³` of [`point_source_fluence`], one row at a time (the same values, bit
+/// for bit): what an image renderer needs without holding a W×H map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointSourceFluence {
+    /// `D²`, mm² (0 when the source is on or behind the detector plane: no photons).
+    d2_mm2: f64,
+    /// Per column, the pixel centre's in-plane x offset from the source's foot, mm.
+    columns_mm: Vec<f64>,
+    /// Per row, the pixel centre's in-plane y offset from the source's foot, mm.
+    rows_mm: Vec<f64>,
+}
+
+impl PointSourceFluence {
+    /// The fluence of `source_mm` (world, mm) over `frame`'s pixel centres.
+    pub fn new(frame: &DetectorFrame, source_mm: DVec3) -> PointSourceFluence {
+        let [w, h] = frame.pixels;
+        let s = frame.pose.to_local(source_mm);
+        let d = s.z;
+        let d2_mm2 = if d > 0.0 && d.is_finite() { d * d } else { 0.0 };
+        PointSourceFluence {
+            d2_mm2,
+            columns_mm: (0..w)
+                .map(|i| frame.pixel_local(i as f64 + 0.5, 0.5).x - s.x)
+                .collect(),
+            rows_mm: (0..h)
+                .map(|j| frame.pixel_local(0.5, j as f64 + 0.5).y - s.y)
+                .collect(),
+        }
+    }
+
+    /// Writes row `j`'s `W` values into `out`.
+    ///
+    /// # Panics
+    /// When `j` is not a row or `out` is not `W` long.
+    pub fn row(&self, j: usize, out: &mut [f64]) {
+        assert_eq!(out.len(), self.columns_mm.len(), "one value per column");
+        let d2 = self.d2_mm2;
+        if d2 == 0.0 {
+            out.fill(0.0);
+            return;
+        }
+        let y = self.rows_mm[j];
+        for (o, &x) in out.iter_mut().zip(&self.columns_mm) {
+            let c = d2 / (x * x + y * y + d2);
+            *o = c * c.sqrt();
+        }
+    }
+
+    /// Pixels per row (W).
+    pub fn width(&self) -> usize {
+        self.columns_mm.len()
+    }
+
+    /// Rows (H).
+    pub fn height(&self) -> usize {
+        self.rows_mm.len()
+    }
 }
 
 #[cfg(test)]

@@ -47,18 +47,24 @@
 //! # Determinism and speed
 //!
 //! The Beer–Lambert factor uses this module's own [`exp`] (pure IEEE arithmetic, within 2 ulp of
-//! `libm::exp`), the radiograph logarithm `libm::log`, the sampler the project's own. Pixels whose
-//! lengths are all 0 share one precomputed open-field sum (times their fluence); the others run
-//! through a bin loop that vectorises over pixels (see `expected`).
+//! `libm::exp`), the radiograph logarithm `libm::log`, the sampler the project's own. Path
+//! lengths arrive as [`Layer`]s (one solid's rectangle of lengths, added to or taken from one
+//! material) and the fluence as a [`PointSourceFluence`]; both are turned into values one row at
+//! a time inside the row loop, so no W×H image per material is held. Pixels whose lengths are
+//! all 0 share one precomputed open-field sum (times their fluence); the others run through a
+//! bin loop over blocks of pixels, with AVX2 intrinsics where the CPU has them (bit for bit the
+//! scalar values; see `expected`).
 
 mod digitise;
 pub mod exp;
 mod expected;
 mod fluence;
+mod layer;
 #[cfg(test)]
 mod tests;
 
-pub use fluence::point_source_fluence;
+pub use fluence::{PointSourceFluence, point_source_fluence};
+pub use layer::{Layer, material_row};
 
 use rayon::prelude::*;
 
@@ -161,11 +167,34 @@ pub struct Scene<'a> {
     pub height: usize,
     /// `mu_per_mm[m][b]`: linear attenuation of material m at bin b, per mm (≥ 0).
     pub mu_per_mm: &'a [Vec<f64>],
-    /// `lengths_mm[m]`: row-major W×H path lengths of material m in mm (≥ 0, already net of
-    /// nesting); an empty vector means all zero.
-    pub lengths_mm: &'a [Vec<f64>],
-    /// W×H relative fluence, row-major ([`point_source_fluence`]).
-    pub fluence: &'a [f64],
+    /// The path-length layers: material m's length at a pixel is the sum of its layers there
+    /// ([`material_row`]), a negative sum (rounding of nested solids) counting as 0. A material
+    /// without layers is absent.
+    pub layers: &'a [Layer<'a>],
+    /// The relative fluence of every pixel.
+    pub fluence: Fluence<'a>,
+}
+
+/// The relative fluence `f_p` of every pixel.
+#[derive(Debug, Clone, Copy)]
+pub enum Fluence<'a> {
+    /// W×H values, row-major.
+    Image(&'a [f64]),
+    /// A point source's `(D/r)³`, computed row by row.
+    PointSource(&'a PointSourceFluence),
+}
+
+impl Fluence<'_> {
+    /// Row `j` (W values) into `out`.
+    fn row(&self, j: usize, out: &mut [f64]) {
+        match self {
+            Fluence::Image(v) => {
+                let w = out.len();
+                out.copy_from_slice(&v[j * w..(j + 1) * w]);
+            }
+            Fluence::PointSource(f) => f.row(j, out),
+        }
+    }
 }
 
 /// A rendered image and what a caller reports about it.
@@ -238,24 +267,36 @@ pub fn check_inputs(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Result<(
 
 /// The scene half of [`check_inputs`].
 fn check_scene(scene: &Scene, bins: usize) -> Result<(), String> {
-    let pixels = scene.width.checked_mul(scene.height);
-    if pixels.is_none_or(|p| scene.fluence.len() != p) {
-        return Err(format!(
-            "fluence has {} values for a {}×{} image",
-            scene.fluence.len(),
-            scene.width,
-            scene.height
-        ));
+    let (w, h) = (scene.width, scene.height);
+    match scene.fluence {
+        Fluence::Image(v) => {
+            if w.checked_mul(h).is_none_or(|p| v.len() != p) {
+                return Err(format!(
+                    "fluence has {} values for a {w}×{h} image",
+                    v.len()
+                ));
+            }
+            if let Some((p, v)) = v
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(**v >= 0.0 && v.is_finite()))
+            {
+                return Err(format!(
+                    "fluence[{p}] = {v} is not valid (must be finite and ≥ 0)"
+                ));
+            }
+        }
+        Fluence::PointSource(f) => {
+            if (f.width(), f.height()) != (w, h) {
+                return Err(format!(
+                    "the fluence is {}×{} for a {w}×{h} image",
+                    f.width(),
+                    f.height()
+                ));
+            }
+        }
     }
-    let pixels = scene.fluence.len();
-    if scene.mu_per_mm.len() != scene.lengths_mm.len() {
-        return Err(format!(
-            "{} attenuation rows for {} length images (need one per material)",
-            scene.mu_per_mm.len(),
-            scene.lengths_mm.len()
-        ));
-    }
-    for (m, (mu, lengths)) in scene.mu_per_mm.iter().zip(scene.lengths_mm).enumerate() {
+    for (m, mu) in scene.mu_per_mm.iter().enumerate() {
         if mu.len() != bins {
             return Err(format!(
                 "mu_per_mm[{m}] has {} values for {bins} bins",
@@ -271,31 +312,40 @@ fn check_scene(scene: &Scene, bins: usize) -> Result<(), String> {
                 "mu_per_mm[{m}][{b}] = {v} is not valid (must be finite and ≥ 0 per mm)"
             ));
         }
-        if !lengths.is_empty() && lengths.len() != pixels {
+    }
+    for (k, layer) in scene.layers.iter().enumerate() {
+        if layer.material >= scene.mu_per_mm.len() {
             return Err(format!(
-                "lengths_mm[{m}] has {} values for {pixels} pixels (or must be empty)",
-                lengths.len()
+                "layer {k} has material {} of {} (need one attenuation row per material)",
+                layer.material,
+                scene.mu_per_mm.len()
             ));
         }
-        if let Some((p, v)) = lengths
+        if !layer.fits(w, h) {
+            return Err(format!(
+                "layer {k} covers columns {:?} and rows {:?} with {} values (must lie within \
+                 the {w}×{h} image, one value per pixel)",
+                layer.columns,
+                layer.rows,
+                layer.length_mm.len()
+            ));
+        }
+        if layer.sign != 1.0 && layer.sign != -1.0 {
+            return Err(format!(
+                "layer {k} has sign {} (must be +1 or −1)",
+                layer.sign
+            ));
+        }
+        if let Some((p, v)) = layer
+            .length_mm
             .iter()
             .enumerate()
             .find(|(_, v)| !(**v >= 0.0 && v.is_finite()))
         {
             return Err(format!(
-                "lengths_mm[{m}][{p}] = {v} is not valid (must be finite and ≥ 0 mm)"
+                "layer {k} length_mm[{p}] = {v} is not valid (must be finite and ≥ 0 mm)"
             ));
         }
-    }
-    if let Some((p, v)) = scene
-        .fluence
-        .iter()
-        .enumerate()
-        .find(|(_, v)| !(**v >= 0.0 && v.is_finite()))
-    {
-        return Err(format!(
-            "fluence[{p}] = {v} is not valid (must be finite and ≥ 0)"
-        ));
     }
     Ok(())
 }
@@ -303,7 +353,7 @@ fn check_scene(scene: &Scene, bins: usize) -> Result<(), String> {
 /// The prepared inputs shared by every row.
 struct Prepared {
     bins: Bins,
-    /// Materials whose length image is not empty.
+    /// Materials with at least one layer, ascending.
     active: Vec<usize>,
 }
 
@@ -312,25 +362,31 @@ impl Prepared {
     /// When the shapes disagree (see [`check_inputs`]).
     fn new(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Prepared {
         let bins = Bins::new(beam, &det.efficiency);
-        let pixels = scene.width * scene.height;
-        assert_eq!(scene.fluence.len(), pixels, "fluence is not W×H");
-        assert_eq!(
-            scene.mu_per_mm.len(),
-            scene.lengths_mm.len(),
-            "one attenuation row per length image"
-        );
-        let mut active = Vec::new();
-        for (m, (mu, lengths)) in scene.mu_per_mm.iter().zip(scene.lengths_mm).enumerate() {
+        let (w, h) = (scene.width, scene.height);
+        match scene.fluence {
+            Fluence::Image(v) => assert_eq!(Some(v.len()), w.checked_mul(h), "fluence is not W×H"),
+            Fluence::PointSource(f) => {
+                assert_eq!((f.width(), f.height()), (w, h), "fluence is not W×H")
+            }
+        }
+        for (m, mu) in scene.mu_per_mm.iter().enumerate() {
             assert_eq!(
                 mu.len(),
                 bins.quanta.len(),
                 "mu_per_mm[{m}]: one value per bin"
             );
-            if !lengths.is_empty() {
-                assert_eq!(lengths.len(), pixels, "lengths_mm[{m}] is not W×H");
-                active.push(m);
-            }
         }
+        let mut active = Vec::new();
+        for (k, layer) in scene.layers.iter().enumerate() {
+            assert!(
+                layer.material < scene.mu_per_mm.len(),
+                "layer {k}: no attenuation row for its material"
+            );
+            assert!(layer.fits(w, h), "layer {k} does not fit the image");
+            active.push(layer.material);
+        }
+        active.sort_unstable();
+        active.dedup();
         assert!(
             scene.height as u64 <= 1u64 << 32,
             "more than 2³² rows (noise streams are numbered by u32)"
@@ -353,8 +409,19 @@ pub fn expected_quanta(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Vec<f
     }
     out.par_chunks_mut(w)
         .enumerate()
-        .for_each_init(RowScratch::default, |s, (j, row)| {
-            row_expected(&prep.bins, scene, &prep.active, j, row, None, s);
+        .for_each_init(RenderScratch::default, |s, (j, row)| {
+            s.fluence.resize(w, 0.0);
+            scene.fluence.row(j, &mut s.fluence);
+            row_expected(
+                &prep.bins,
+                scene,
+                &prep.active,
+                j,
+                &s.fluence,
+                row,
+                None,
+                &mut s.rows,
+            );
         });
     out
 }
@@ -363,6 +430,7 @@ pub fn expected_quanta(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Vec<f
 #[derive(Default)]
 struct RenderScratch {
     rows: RowScratch,
+    fluence: Vec<f64>,
     quanta: Vec<f64>,
     energy_kev: Vec<f64>,
 }
@@ -379,14 +447,12 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
     let prep = Prepared::new(beam, det, scene);
     let w = scene.width;
     let open = open_signal(det.response, &prep.bins);
-    let f_max = scene.fluence.iter().fold(0.0f64, |m, &f| m.max(f));
-    let expected_open_max = det.offset + det.gain * (f_max * open);
     let mut pixels = vec![0u16; w * scene.height];
     if w == 0 {
         return Rendered {
             pixels,
             saturated: 0,
-            expected_open_max,
+            expected_open_max: det.offset,
         };
     }
     let integrating = det.response == Response::EnergyIntegrating;
@@ -395,23 +461,27 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
         Polarity::Raw => 0.0,
     };
     let i_max = det.i_max;
-    let saturated = pixels
+    let (saturated, f_max) = pixels
         .par_chunks_mut(w)
         .enumerate()
         .map_init(RenderScratch::default, |s, (j, row)| {
+            s.fluence.resize(w, 0.0);
             s.quanta.resize(w, 0.0);
             s.energy_kev.resize(w, 0.0);
+            scene.fluence.row(j, &mut s.fluence);
             let energy = integrating.then_some(&mut s.energy_kev[..]);
             row_expected(
                 &prep.bins,
                 scene,
                 &prep.active,
                 j,
+                &s.fluence,
                 &mut s.quanta,
                 energy,
                 &mut s.rows,
             );
-            let fluence = &scene.fluence[j * w..(j + 1) * w];
+            let fluence = &s.fluence;
+            let f_max = fluence.iter().fold(0.0f64, |m, &f| m.max(f));
             let mut rng = key.row_rng(j as u32);
             let mut saturated = 0usize;
             for i in 0..w {
@@ -434,9 +504,10 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
                     }
                 };
             }
-            saturated
+            (saturated, f_max)
         })
-        .sum();
+        .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+    let expected_open_max = det.offset + det.gain * (f_max * open);
     Rendered {
         pixels,
         saturated,

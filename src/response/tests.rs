@@ -45,8 +45,8 @@ fn mono_beam_through_known_lengths_is_beer_lambert() {
         width: 4,
         height: 2,
         mu_per_mm: &mu_rows,
-        lengths_mm: &len_rows,
-        fluence: &fluence,
+        layers: &Layer::images(4, 2, &len_rows),
+        fluence: Fluence::Image(&fluence),
     };
     let det = detector(Response::PhotonCounting, vec![eta], Polarity::Raw);
     let q = expected_quanta(&mono(n0), &det, &scene);
@@ -82,8 +82,8 @@ fn two_materials_three_bins_equal_the_hand_sum() {
         width: w,
         height: h,
         mu_per_mm: &mu,
-        lengths_mm: &lengths,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &lengths),
+        fluence: Fluence::Image(&fluence),
     };
     let det = detector(Response::EnergyIntegrating, eta.clone(), Polarity::Raw);
     let q = expected_quanta(&beam, &det, &scene);
@@ -115,8 +115,8 @@ fn uniform_field(lambda: f64, response: Response, gain: f64) -> (Rendered, Detec
         width: w,
         height: h,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &fluence,
+        layers: &[],
+        fluence: Fluence::Image(&fluence),
     };
     (render(&mono(lambda), &det, &scene, &key()), det)
 }
@@ -150,8 +150,8 @@ fn every_pixel_draws_with_its_own_mean() {
         width: w,
         height: h,
         mu_per_mm: &mu,
-        lengths_mm: &len,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &len),
+        fluence: Fluence::Image(&fluence),
     };
     let det = detector(Response::PhotonCounting, vec![1.0], Polarity::Raw);
     let beam = mono(20_000.0);
@@ -184,8 +184,8 @@ fn draw_order_is_row_stream_then_pixels_left_to_right() {
         width: w,
         height: h,
         mu_per_mm: &mu,
-        lengths_mm: &len,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &len),
+        fluence: Fluence::Image(&fluence),
     };
     let det = detector(Response::PhotonCounting, vec![0.9], Polarity::Raw);
     let beam = mono(300.0);
@@ -213,8 +213,8 @@ fn energy_integrating_mean_is_gain_times_expected_energy() {
         width: w,
         height: h,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &fluence,
+        layers: &[],
+        fluence: Fluence::Image(&fluence),
     };
     let q0 = 400.0 * 0.95 + 900.0 * 0.8 + 300.0 * 0.6;
     let e0 = 400.0 * 0.95 * 30.0 + 900.0 * 0.8 * 50.0 + 300.0 * 0.6 * 70.0;
@@ -248,8 +248,8 @@ fn same_bytes_on_one_and_two_threads() {
         width: w,
         height: h,
         mu_per_mm: &mu,
-        lengths_mm: &len,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &len),
+        fluence: Fluence::Image(&fluence),
     };
     let beam = Beam {
         energies_kev: vec![45.0, 70.0],
@@ -286,8 +286,8 @@ fn radiograph_of_air_is_black_and_of_the_range_is_white() {
         width: w,
         height: h,
         mu_per_mm: &mu_rows,
-        lengths_mm: &len,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &len),
+        fluence: Fluence::Image(&fluence),
     };
     let mut det = detector(
         Response::EnergyIntegrating,
@@ -334,8 +334,8 @@ fn radiograph_of_air_averages_zero_at_16_bits() {
             width: w,
             height: h,
             mu_per_mm: &[],
-            lengths_mm: &[],
-            fluence: &fluence,
+            layers: &[],
+            fluence: Fluence::Image(&fluence),
         };
         (render(&mono(1e6), &det, &scene, &key()), ())
     };
@@ -363,8 +363,8 @@ fn saturation_is_counted_and_clipped() {
         width: w,
         height: h,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &fluence,
+        layers: &[],
+        fluence: Fluence::Image(&fluence),
     };
     let mut det = detector(Response::PhotonCounting, vec![1.0], Polarity::Raw);
     det.i_max = 5000;
@@ -411,8 +411,8 @@ fn auto_gain_puts_the_open_field_at_the_fraction() {
         width: w,
         height: h,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &fluence,
+        layers: &[],
+        fluence: Fluence::Image(&fluence),
     };
     let det = DetectorModel {
         response: Response::EnergyIntegrating,
@@ -444,8 +444,8 @@ fn fluence_scales_the_mean_and_a_dark_pixel_gives_offset() {
         width: 2,
         height: 2,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &fluence,
+        layers: &[],
+        fluence: Fluence::Image(&fluence),
     };
     let mut det = detector(Response::PhotonCounting, vec![1.0], Polarity::Raw);
     det.offset = 7.0;
@@ -475,8 +475,8 @@ fn invalid_values_never_panic_and_are_reported() {
         width: w,
         height: h,
         mu_per_mm: &mu,
-        lengths_mm: &len,
-        fluence: &fluence,
+        layers: &Layer::images(w, h, &len),
+        fluence: Fluence::Image(&fluence),
     };
     let beam = Beam {
         energies_kev: vec![f64::NAN, -1.0],
@@ -508,18 +508,22 @@ fn invalid_values_never_panic_and_are_reported() {
     let det = detector(Response::PhotonCounting, vec![1.0], Polarity::Raw);
     let ok_fluence = vec![1.0; 4];
     let one_mu = vec![vec![0.1]];
-    let cases: [(Vec<Vec<f64>>, &str); 3] = [
-        (vec![vec![0.0, 1.0, -2.0, 0.0]], "lengths_mm[0][2]"),
-        (vec![vec![0.0; 3]], "lengths_mm[0] has 3 values"),
+    let cases: [(Vec<Vec<f64>>, &str); 4] = [
+        (vec![vec![0.0, 1.0, -2.0, 0.0]], "layer 0 length_mm[2] = -2"),
+        (
+            vec![vec![0.0; 3]],
+            "layer 0 covers columns 0..2 and rows 0..2 with 3 values",
+        ),
         (vec![vec![]], ""),
+        (vec![vec![], vec![0.0; 4]], "layer 0 has material 1 of 1"),
     ];
     for (lengths, expected) in cases {
         let scene = Scene {
             width: 2,
             height: 2,
             mu_per_mm: &one_mu,
-            lengths_mm: &lengths,
-            fluence: &ok_fluence,
+            layers: &Layer::images(2, 2, &lengths),
+            fluence: Fluence::Image(&ok_fluence),
         };
         match check_inputs(&good_beam, &det, &scene) {
             Ok(()) => assert_eq!(expected, ""),
@@ -534,11 +538,116 @@ fn empty_image_is_empty() {
         width: 0,
         height: 0,
         mu_per_mm: &[],
-        lengths_mm: &[],
-        fluence: &[],
+        layers: &[],
+        fluence: Fluence::Image(&[]),
     };
     let det = detector(Response::PhotonCounting, vec![1.0], Polarity::Raw);
     let r = render(&mono(10.0), &det, &scene, &key());
     assert!(r.pixels.is_empty());
     assert!(expected_quanta(&mono(10.0), &det, &scene).is_empty());
+}
+
+#[test]
+fn rectangle_layers_and_row_fluence_equal_full_images() {
+    // A 37 × 23 image: material 0 over a 20 × 15 rectangle with a nested 6 × 5 rectangle taken
+    // from it (and given to material 1), plus rounding residue below zero; the same scene as
+    // full per-material images (the layers added into zeroed images in order, negatives set to
+    // 0) with the point source's fluence as a map.
+    let (w, h) = (37usize, 23usize);
+    let frame = crate::geometry::DetectorFrame {
+        pose: crate::geometry::Pose::from_position_euler_deg(
+            [3.0, -2.0, -400.0],
+            [4.0, -7.0, 30.0],
+        ),
+        pixels: [w as u32, h as u32],
+        pixel_pitch_mm: [0.7, 0.9],
+    };
+    let source = glam::DVec3::new(20.0, 10.0, 900.0);
+    let outer: Vec<f64> = (0..20 * 15).map(|p| 5.0 + (p % 11) as f64 * 0.37).collect();
+    let inner: Vec<f64> = (0..6 * 5).map(|p| 1.0 + (p % 4) as f64 * 0.5).collect();
+    let residue = vec![1e-9; 4];
+    let layers = [
+        Layer {
+            material: 0,
+            sign: 1.0,
+            columns: 9..29,
+            rows: 4..19,
+            length_mm: &outer,
+        },
+        Layer {
+            material: 0,
+            sign: -1.0,
+            columns: 12..18,
+            rows: 6..11,
+            length_mm: &inner,
+        },
+        Layer {
+            material: 1,
+            sign: 1.0,
+            columns: 12..18,
+            rows: 6..11,
+            length_mm: &inner,
+        },
+        Layer {
+            material: 1,
+            sign: -1.0,
+            columns: 30..32,
+            rows: 0..2,
+            length_mm: &residue,
+        },
+    ];
+    let mut images = vec![vec![0.0; w * h]; 2];
+    for l in &layers {
+        let cols = l.columns.len();
+        for (r, row) in l.length_mm.chunks(cols).enumerate() {
+            let start = (l.rows.start + r) * w + l.columns.start;
+            for (dst, &v) in images[l.material][start..start + cols].iter_mut().zip(row) {
+                *dst += l.sign * v;
+            }
+        }
+    }
+    for v in images.iter_mut().flatten() {
+        if *v < 0.0 {
+            *v = 0.0;
+        }
+    }
+    let fluence_map = point_source_fluence(&frame, source);
+    let fluence_rows = PointSourceFluence::new(&frame, source);
+    let mu = vec![vec![0.02, 0.03, 0.05], vec![0.4, 0.7, 1.9]];
+    let beam = Beam {
+        energies_kev: vec![80.0, 50.0, 30.0],
+        photons_per_pixel: vec![3000.0, 5000.0, 800.0],
+    };
+    let det = detector(
+        Response::EnergyIntegrating,
+        vec![0.6, 0.8, 0.95],
+        Polarity::Raw,
+    );
+    let by_layers = Scene {
+        width: w,
+        height: h,
+        mu_per_mm: &mu,
+        layers: &layers,
+        fluence: Fluence::PointSource(&fluence_rows),
+    };
+    let by_images = Scene {
+        width: w,
+        height: h,
+        mu_per_mm: &mu,
+        layers: &Layer::images(w, h, &images),
+        fluence: Fluence::Image(&fluence_map),
+    };
+    check_inputs(&beam, &det, &by_layers).expect("valid layers");
+    let (q1, q2) = (
+        expected_quanta(&beam, &det, &by_layers),
+        expected_quanta(&beam, &det, &by_images),
+    );
+    assert!(q1.iter().zip(&q2).all(|(a, b)| a.to_bits() == b.to_bits()));
+    // The nested rectangle attenuates more than the outer one around it.
+    assert!(q1[8 * w + 14] < q1[8 * w + 10]);
+    let (r1, r2) = (
+        render(&beam, &det, &by_layers, &key()),
+        render(&beam, &det, &by_images, &key()),
+    );
+    assert_eq!(r1, r2);
 }

@@ -29,6 +29,7 @@
 use std::ops::Range;
 
 use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 
 use super::raster::{self, centre_range, scan_triangle};
 use super::{MeshBvh, Object, pixel_bounds, shapes};
@@ -86,15 +87,25 @@ pub fn path_lengths_traced(
 ) -> Option<PathLengths> {
     let (lo, hi) = object.local_bounds();
     let (i0, i1, j0, j1) = pixel_bounds(frame, source_mm, object.pose(), lo, hi)?;
-    let mut length_mm = Vec::with_capacity((i1 - i0) as usize * (j1 - j0) as usize);
-    for j in j0..j1 {
-        for i in i0..i1 {
-            let target = frame.pixel_centre_world(i, j);
-            length_mm.push(match object {
-                Object::Mesh { bvh, pose } => traced_mesh_length_mm(bvh, *pose, source_mm, target),
-                _ => object.chord_mm(source_mm, target).unwrap_or(0.0),
+    let width = (i1 - i0) as usize;
+    let mut length_mm = vec![0.0; width * (j1 - j0) as usize];
+    if width > 0 {
+        // Rows in parallel: every pixel's value is its own, so the result does not depend on
+        // the number of threads.
+        length_mm
+            .par_chunks_mut(width)
+            .zip(j0..j1)
+            .for_each(|(row, j)| {
+                for (l, i) in row.iter_mut().zip(i0..i1) {
+                    let target = frame.pixel_centre_world(i, j);
+                    *l = match object {
+                        Object::Mesh { bvh, pose } => {
+                            traced_mesh_length_mm(bvh, *pose, source_mm, target)
+                        }
+                        _ => object.chord_mm(source_mm, target).unwrap_or(0.0),
+                    };
+                }
             });
-        }
     }
     Some(PathLengths {
         columns: i0..i1,
