@@ -49,6 +49,69 @@ pub(crate) fn radiograph(
     quantise(f64::from(i_max) * t, i_max)
 }
 
+/// [`radiograph`]'s values without a `libm::log` per pixel: the same `u16` for every input,
+/// found from a table of the ratios where the value steps.
+///
+/// Value `k` (`1 ≤ k ≤ i_max`) needs `i_max · ln(ratio) / range ≥ k − ½`, i.e. a ratio at or
+/// above `T_k = exp((k − ½)·range / i_max)`. A guess `k` from the platform's `ln` (fast, but not
+/// the same bits everywhere) is accepted only when the ratio lies inside `[T_k, T_{k+1})` with a
+/// relative margin of [`MARGIN`] on both sides; there the exact formula gives `k` on every
+/// platform (its rounding errors, a few ulp of `i_max`, are far smaller than the
+/// `i_max · MARGIN / range` by which the ratio stays off a step). Otherwise, or when a step
+/// lies within the margin, [`radiograph`] itself decides. So the output is [`radiograph`]'s,
+/// bit for bit (test `table_gives_the_formula_s_values`), and the platform `ln` only saves time.
+#[derive(Debug, Clone)]
+pub(crate) struct RadiographTable {
+    range: f64,
+    exp_range: f64,
+    i_max: u16,
+    /// `i_max / range`.
+    scale: f64,
+    /// `T_k` for `k = 0..=i_max + 1` (`T_0 = 0`, `T_{i_max+1} = +∞`).
+    steps: Vec<f64>,
+}
+
+/// Relative distance from a step below which [`RadiographTable`] defers to the formula.
+const MARGIN: f64 = 1e-9;
+
+impl RadiographTable {
+    /// The table for `range` (> 0, finite) and `i_max`; `exp_range` as for [`radiograph`].
+    pub(crate) fn new(range: f64, exp_range: f64, i_max: u16) -> RadiographTable {
+        let n = usize::from(i_max);
+        let mut steps = Vec::with_capacity(n + 2);
+        steps.push(0.0);
+        for k in 1..=n {
+            steps.push(libm::exp((k as f64 - 0.5) * range / f64::from(i_max)));
+        }
+        steps.push(f64::INFINITY);
+        RadiographTable {
+            range,
+            exp_range,
+            i_max,
+            scale: f64::from(i_max) / range,
+            steps,
+        }
+    }
+
+    /// [`radiograph`]`(signal, open_signal, range, exp_range, i_max)`.
+    #[inline]
+    pub(crate) fn value(&self, signal: f64, open_signal: f64) -> u16 {
+        if signal > 0.0 {
+            let ratio = open_signal / signal;
+            if ratio > 1.0 && ratio < self.exp_range {
+                let guess = (ratio.ln() * self.scale + 0.5).clamp(0.0, f64::from(self.i_max));
+                let k = guess as usize;
+                if self.steps[k] * (1.0 + MARGIN) <= ratio
+                    && ratio * (1.0 + MARGIN) < self.steps[k + 1]
+                {
+                    return k as u16;
+                }
+            }
+        }
+        radiograph(signal, open_signal, self.range, self.exp_range, self.i_max)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -65,6 +128,53 @@ mod tests {
         assert_eq!(quantise(65534.6, u16::MAX), u16::MAX);
         assert!(!is_saturated(100.49, 100));
         assert!(is_saturated(100.5, 100));
+    }
+
+    #[test]
+    fn table_gives_the_formula_s_values() {
+        // Every step of a 12-bit and a 16-bit image is hit from both sides, plus a sweep of
+        // ratios over the whole range and the shortcuts.
+        for (range, i_max) in [(7.0, 4095u16), (7.0, u16::MAX), (2.5, 255), (11.0, 1)] {
+            let er = libm::exp(range);
+            let table = RadiographTable::new(range, er, i_max);
+            let check = |s: f64, s0: f64| {
+                assert_eq!(
+                    table.value(s, s0),
+                    radiograph(s, s0, range, er, i_max),
+                    "S = {s}, S_open = {s0}, range {range}, i_max {i_max}"
+                );
+            };
+            for k in 1..=usize::from(i_max) {
+                let t = table.steps[k];
+                for r in [
+                    t,
+                    t * (1.0 + 1e-16),
+                    t * (1.0 - 1e-16),
+                    t * (1.0 + 2e-9),
+                    t * (1.0 - 2e-9),
+                    t * (1.0 + 1e-6),
+                ] {
+                    check(1000.0 / r, 1000.0);
+                    check(1.0, r);
+                }
+            }
+            for i in 0..200_000u64 {
+                let r = libm::exp(range * 1.1 * i as f64 / 2e5) * (1.0 + 1e-7 * (i % 10) as f64);
+                check(3.7, 3.7 * r);
+            }
+            for (s, s0) in [
+                (0.0, 5.0),
+                (-1.0, 5.0),
+                (5.0, 0.0),
+                (5.0, 5.0),
+                (f64::NAN, 5.0),
+                (5.0, f64::NAN),
+                (1.0, er),
+                (1.0, f64::INFINITY),
+            ] {
+                check(s, s0);
+            }
+        }
     }
 
     #[test]

@@ -38,7 +38,8 @@
 //! Row `j` (row 0 is the first stored row) draws from `key.row_rng(j)` (the stream derivation of
 //! [`crate::noise::stream`]); its pixels draw left to right, one Poisson sample each, with the
 //! pixel's own mean λ = Q ([`Poisson::sample_with_mean`], the same values as
-//! `Poisson::new(Q).sample`). A sample consumes a variable number of `u64`s (none for λ = 0), so
+//! `Poisson::new(Q).sample`; a row's samples are drawn by [`Poisson::sample_each`], which gives
+//! exactly those values in that order). A sample consumes a variable number of `u64`s (none for λ = 0), so
 //! unlike binary mode a pixel's noise depends on the means of the pixels before it in its row.
 //! Means outside `[0, LAMBDA_MAX]` (only from invalid inputs; see [`check_inputs`]) are replaced by
 //! 0 (negative or NaN) or [`LAMBDA_MAX`]. Rows are independent and run in parallel (rayon): the
@@ -47,7 +48,8 @@
 //! # Determinism and speed
 //!
 //! The Beer–Lambert factor uses this module's own [`exp`] (pure IEEE arithmetic, within 2 ulp of
-//! `libm::exp`), the radiograph logarithm `libm::log`, the sampler the project's own. Path
+//! `libm::exp`), the radiograph logarithm `libm::log` (its values found through a table of the
+//! ratios where the stored value steps, bit for bit the formula's), the sampler the project's own. Path
 //! lengths arrive as [`Layer`]s (one solid's rectangle of lengths, added to or taken from one
 //! material) and the fluence as a [`PointSourceFluence`]; both are turned into values one row at
 //! a time inside the row loop, so no W×H image per material is held. Pixels whose lengths are
@@ -433,6 +435,10 @@ struct RenderScratch {
     fluence: Vec<f64>,
     quanta: Vec<f64>,
     energy_kev: Vec<f64>,
+    /// The Poisson means of the row (`quanta` sanitised).
+    lambdas: Vec<f64>,
+    /// The row's photon counts.
+    counts: Vec<u64>,
 }
 
 /// Renders one attenuation image: expected quanta, Poisson noise on every pixel, signal, then
@@ -456,9 +462,13 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
         };
     }
     let integrating = det.response == Response::EnergyIntegrating;
-    let exp_range = match det.polarity {
-        Polarity::Radiograph { range } => libm::exp(range),
-        Polarity::Raw => 0.0,
+    let table = match det.polarity {
+        Polarity::Radiograph { range } => Some(digitise::RadiographTable::new(
+            range,
+            libm::exp(range),
+            det.i_max,
+        )),
+        Polarity::Raw => None,
     };
     let i_max = det.i_max;
     let (saturated, f_max) = pixels
@@ -483,11 +493,18 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             let fluence = &s.fluence;
             let f_max = fluence.iter().fold(0.0f64, |m, &f| m.max(f));
             let mut rng = key.row_rng(j as u32);
+            s.lambdas.clear();
+            s.lambdas.extend(
+                s.quanta
+                    .iter()
+                    .map(|&q| if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 }),
+            );
+            s.counts.resize(w, 0);
+            Poisson::sample_each(&s.lambdas, &mut rng, &mut s.counts);
             let mut saturated = 0usize;
             for i in 0..w {
                 let q = s.quanta[i];
-                let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
-                let n = Poisson::sample_with_mean(lambda, &mut rng) as f64;
+                let n = s.counts[i] as f64;
                 let signal = if !integrating {
                     n
                 } else if q > 0.0 {
@@ -499,9 +516,9 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
                 saturated += usize::from(digitise::is_saturated(raw, i_max));
                 row[i] = match det.polarity {
                     Polarity::Raw => digitise::quantise(raw, i_max),
-                    Polarity::Radiograph { range } => {
-                        digitise::radiograph(signal, fluence[i] * open, range, exp_range, i_max)
-                    }
+                    Polarity::Radiograph { .. } => table
+                        .as_ref()
+                        .map_or(0, |t| t.value(signal, fluence[i] * open)),
                 };
             }
             (saturated, f_max)
