@@ -45,7 +45,8 @@ trap 'rm -rf "$work"' EXIT
 source bench/peers_env.sh
 say() { printf '\n== %s\n' "$*"; }
 
-machine_info | tee "$results/machine.txt"
+load() { echo "load average ($1): $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min; $(nproc) CPUs)"; }
+{ machine_info; load start; } | tee "$results/machine.txt"
 target_dir=$(cargo metadata --format-version 1 --no-deps |
     "$python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
@@ -69,6 +70,8 @@ else
     echo "error: the gVirtualXray peer failed; the last lines of $results/gvxr.log:"
     tail -n 15 "$results/gvxr.log"
 fi
+
+load end | tee -a "$results/machine.txt"
 
 say "3. summary"
 "$py" bench/peers_attenuation.py summary "$scenes" --markdown "$results/summary.md" >/dev/null
