@@ -193,7 +193,10 @@ pub fn elliptic_cylinder_tessellation(
     // The gap between each chord and its arc, sampled along the arc.
     let mut chord_error_mm: f64 = 0.0;
     for k in 0..sectors {
-        let (p, q) = (point(k as f64 * step, 0.0), point((k + 1) as f64 * step, 0.0));
+        let (p, q) = (
+            point(k as f64 * step, 0.0),
+            point((k + 1) as f64 * step, 0.0),
+        );
         let dir = (q - p).normalize();
         for s in 1..16 {
             let r = point((k as f64 + s as f64 / 16.0) * step, 0.0) - p;
