@@ -234,3 +234,58 @@ pub fn cuboid_tessellation(pose: &Pose, half_size_mm: DVec3) -> Tessellation {
         chord_error_mm: 0.0,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rsasim::geometry::rotation_xyz_deg;
+
+    fn pose() -> Pose {
+        Pose {
+            position_mm: DVec3::new(10.0, -20.0, 30.0),
+            rotation: rotation_xyz_deg([-90.0, 5.0, 12.0]),
+        }
+    }
+
+    /// Closed, outward-wound, and the volume of the exact solid to within what the chord error
+    /// allows.
+    fn check(t: &Tessellation, exact_mm3: f64, area_mm2: f64) {
+        t.mesh.check_closed().unwrap();
+        let v = t.mesh.signed_volume_mm3();
+        assert!(v > 0.0, "wound inwards: {v}");
+        let slack = area_mm2 * t.chord_error_mm + 1e-5 * exact_mm3;
+        assert!(
+            v <= exact_mm3 * (1.0 + 1e-6) && exact_mm3 - v <= slack,
+            "volume {v} vs {exact_mm3} (chord error {})",
+            t.chord_error_mm
+        );
+    }
+
+    #[test]
+    fn bead_sphere_is_closed_outward_and_within_its_chord_error() {
+        let r = 0.5;
+        let t = sphere_tessellation(DVec3::new(1.0, 2.0, 3.0), r, SPHERE_LEVEL);
+        assert_eq!(t.mesh.triangles.len(), 20 * 4usize.pow(SPHERE_LEVEL));
+        assert!(t.chord_error_mm > 0.0 && t.chord_error_mm < 4e-5);
+        let pi = std::f64::consts::PI;
+        check(&t, 4.0 / 3.0 * pi * r * r * r, 4.0 * pi * r * r);
+    }
+
+    #[test]
+    fn leg_cylinder_is_closed_outward_and_within_its_chord_error() {
+        let (a, b, h) = (65.0, 58.0, 120.0);
+        let t = elliptic_cylinder_tessellation(&pose(), [a, b], h, CYLINDER_SECTORS);
+        assert_eq!(t.mesh.triangles.len(), 4 * CYLINDER_SECTORS);
+        assert!(t.chord_error_mm > 0.0 && t.chord_error_mm < 2e-5);
+        let pi = std::f64::consts::PI;
+        // Perimeter (Ramanujan) times the length.
+        let perimeter = pi * (3.0 * (a + b) - ((3.0 * a + b) * (a + 3.0 * b)).sqrt());
+        check(&t, pi * a * b * 2.0 * h, perimeter * 2.0 * h);
+    }
+
+    #[test]
+    fn cuboid_is_closed_outward_and_exact() {
+        let t = cuboid_tessellation(&pose(), DVec3::new(1.0, 2.0, 3.0));
+        check(&t, 48.0, 0.0);
+    }
+}
