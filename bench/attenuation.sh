@@ -5,12 +5,16 @@
 #
 # 1. builds examples/attenuation_bench.rs (release) and runs it: times attenuation::render for
 #    bench/attenuation/mono.toml (femoral component, CoCr F75, 60 keV), poly.toml (80 kVp,
-#    2.5 mm Al) and the model exposure of scenarios/biplanar_realistic.toml, and exports the
-#    scenes (meshes, rsasim's path lengths, images, spectrum TSV, μ);
+#    2.5 mm Al), realistic_mono.toml and realistic_poly.toml (issue 11's scene: component, cortical
+#    and cancellous femur, soft tissue, 6 tantalum beads, nested; biplanar_realistic's run-0
+#    geometry; 60 keV / 85 kVp in 40 bins) and scenarios/biplanar_realistic.toml itself, and
+#    exports the scenes (every part's surface, nesting, rsasim's path lengths per material,
+#    images, spectrum TSV, μ); ATTENUATION_BENCH_ONLY=mono,poly,... picks scenes;
 # 2. sets up the peers (as bench/run.sh: throwaway venv with numpy, embreex, gvxr; Debian
 #    packages for gvxr when root), or uses --venv DIR where they are installed already;
 # 3. bench/peers_attenuation.py gvxr, embree and summary: per-pixel transmission rsasim vs
-#    gVXR, path lengths rsasim vs Embree (all hits), and the timing table ours / peer.
+#    gVXR (component mono and poly, realistic mono with μ net of nesting; realistic poly is
+#    timed only), path lengths rsasim vs Embree (all hits), and the timing table ours / peer.
 #
 # Results go to bench/results/attenuation/ (ignored by git): summary.md, the JSON, the logs.
 # Environment: BENCH_REPEATS (default 5), BENCH_PYTHON (default python3).
@@ -41,7 +45,8 @@ trap 'rm -rf "$work"' EXIT
 source bench/peers_env.sh
 say() { printf '\n== %s\n' "$*"; }
 
-machine_info | tee "$results/machine.txt"
+load() { echo "load average ($1): $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min; $(nproc) CPUs)"; }
+{ machine_info; load start; } | tee "$results/machine.txt"
 target_dir=$(cargo metadata --format-version 1 --no-deps |
     "$python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 
@@ -65,6 +70,8 @@ else
     echo "error: the gVirtualXray peer failed; the last lines of $results/gvxr.log:"
     tail -n 15 "$results/gvxr.log"
 fi
+
+load end | tee -a "$results/machine.txt"
 
 say "3. summary"
 "$py" bench/peers_attenuation.py summary "$scenes" --markdown "$results/summary.md" >/dev/null

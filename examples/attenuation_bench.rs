@@ -1,24 +1,33 @@
 //! Attenuation mode against its peers (`bench/attenuation.sh`): times `attenuation::render` for
-//! one image and exports what `bench/peers.py` needs to run gVirtualXray and Embree on the same
+//! one image and exports what `bench/peers_attenuation.py` needs to run gVirtualXray and Embree on the same
 //! scene.
 //!
 //! ```sh
 //! cargo run --release --example attenuation_bench -- DIR [REPEATS]
 //! ```
 //!
-//! Scenes (run 0, detector `det1`, exposure `model`):
+//! Scenes (run 0, detector `det1`, exposure `model`; `ATTENUATION_BENCH_ONLY=a,b` picks some):
 //! - `mono`: `bench/attenuation/mono.toml`, the femoral component alone (CoCr F75), 60 keV;
 //! - `poly`: `bench/attenuation/poly.toml`, the same with the 80 kVp / 2.5 mm Al spectrum;
-//! - `realistic`: `scenarios/biplanar_realistic.toml`, femoral component + cortical and
-//!   cancellous femur + soft tissue + 6 tantalum beads, 85 kVp (timing only).
+//! - `realistic_mono`: `bench/attenuation/realistic_mono.toml`, issue 11's speed scene (femoral
+//!   component + cortical and cancellous femur + soft tissue + 6 tantalum beads, nested) at
+//!   biplanar_realistic's run-0 geometry, 60 keV;
+//! - `realistic_poly`: `bench/attenuation/realistic_poly.toml`, the same with biplanar_realistic's
+//!   85 kVp spectrum in 40 bins;
+//! - `realistic`: `scenarios/biplanar_realistic.toml` itself (its energy-integrating CsI
+//!   detector and its exposure; timing only, not exported).
 //!
 //! DIR receives `attenuation.json` (timings; per exported scene the source, the detector frame as
 //! in `examples/bench_scene.rs`, the energies, photons and detector efficiency per bin, the
-//! material names, densities and mass fractions, μ per material and bin) and per exported scene
-//! `NAME.stl` / `NAME.tris.f32` (the mesh in world coordinates), `NAME.lengths.f32` (the CoCr
-//! path length per pixel, mm, row-major little-endian f32, from `keep_lengths`),
-//! `NAME.image.u16` and `NAME.open.u16` (the detector image with and without the component) and
-//! `NAME.spectrum.tsv` (energy_kev, photons per bin).
+//! material names, densities and mass fractions, μ per material and bin, and `parts_exported`:
+//! per part its kind, material, parent part and parent material (the part it displaces), its
+//! files and the chord error of its tessellation) and per exported scene
+//! `NAME.partK.stl` / `NAME.partK.tris.f32` (part K's closed surface in world coordinates, mm:
+//! meshes as they are, the elliptic cylinder with `CYLINDER_SECTORS` sectors, the beads as
+//! geodesic spheres of level `SPHERE_LEVEL`), `NAME.lengths.f32` (the net path length per
+//! material in the beam, as the EXR layers hold it, mm, f32 little-endian, one row-major layer
+//! per entry of `lengths_materials`), `NAME.image.u16` and `NAME.open.u16` (the detector image
+//! with and without the parts) and `NAME.spectrum.tsv` (energy_kev, photons per bin).
 //!
 //! Timings: one warm-up, then the median of REPEATS (default 5) calls of `attenuation::render`
 //! on all of rayon's threads; the BVHs and the parts are built outside the timing.
@@ -30,13 +39,16 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use export::{arr, detector_json, write, write_triangles};
+use export::{
+    CYLINDER_SECTORS, SPHERE_LEVEL, Tessellation, arr, cuboid_tessellation, detector_json,
+    elliptic_cylinder_tessellation, sphere_tessellation, write, write_triangles,
+};
 use rsasim::attenuation::{self, Part};
 use rsasim::geometry::DVec3;
 use rsasim::noise::NoiseKey;
 use rsasim::phantom::TriMesh;
 use rsasim::simulate::{self, Allowances, Plan};
-use rsasim::trace::MeshBvh;
+use rsasim::trace::{MeshBvh, Object};
 use serde_json::{Value, json};
 
 fn median_ms(mut samples: Vec<f64>) -> f64 {
@@ -140,34 +152,83 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
     if !export {
         return record;
     }
-    let femur = plan
-        .models
-        .iter()
-        .position(|m| m.mesh.is_some())
-        .expect("a mesh phantom");
-    let mesh = plan.models[femur].mesh.as_deref().expect("checked");
-    let pose = run.phantoms[femur].pose();
-    let world = TriMesh {
-        vertices: mesh
-            .vertices
-            .iter()
-            .map(|v| {
-                let w = pose.to_world(DVec3::from_array(v.map(f64::from)));
-                [w.x as f32, w.y as f32, w.z as f32]
-            })
-            .collect(),
-        triangles: mesh.triangles.clone(),
-    };
-    write_triangles(dir, name, &world);
+    // Every part as a closed world-space surface (meshes as they are, the analytic solids
+    // tessellated), with its material and the part it displaces.
+    let mut part_records = Vec::with_capacity(parts.len());
+    for (k, part) in parts.iter().enumerate() {
+        let (kind, t) = match &part.object {
+            Object::Mesh { pose, .. } => {
+                let mesh = plan.models[part.phantom]
+                    .mesh
+                    .as_deref()
+                    .expect("a mesh part's phantom has its mesh");
+                let world = TriMesh {
+                    vertices: mesh
+                        .vertices
+                        .iter()
+                        .map(|v| {
+                            let w = pose.to_world(DVec3::from_array(v.map(f64::from)));
+                            [w.x as f32, w.y as f32, w.z as f32]
+                        })
+                        .collect(),
+                    triangles: mesh.triangles.clone(),
+                };
+                let t = Tessellation {
+                    mesh: world,
+                    chord_error_mm: 0.0,
+                };
+                ("mesh", t)
+            }
+            Object::Sphere {
+                centre_mm,
+                radius_mm,
+            } => (
+                "sphere",
+                sphere_tessellation(*centre_mm, *radius_mm, SPHERE_LEVEL),
+            ),
+            Object::EllipticCylinder {
+                pose,
+                radii_mm,
+                half_length_mm,
+            } => (
+                "elliptic_cylinder",
+                elliptic_cylinder_tessellation(pose, *radii_mm, *half_length_mm, CYLINDER_SECTORS),
+            ),
+            Object::Cuboid { pose, half_size_mm } => {
+                ("cuboid", cuboid_tessellation(pose, *half_size_mm))
+            }
+        };
+        if let Err(e) = t.mesh.check_closed() {
+            panic!("{rel}: part {} is not a closed surface: {e}", part.label);
+        }
+        assert!(
+            t.mesh.signed_volume_mm3() > 0.0,
+            "{rel}: part {} is wound inwards",
+            part.label
+        );
+        let file = format!("{name}.part{k}");
+        write_triangles(dir, &file, &t.mesh);
+        part_records.push(json!({
+            "label": part.label,
+            "kind": kind,
+            "material": part.material,
+            "parent": part.parent,
+            "parent_material": part.parent.map(|p| parts[p].material),
+            "stl": format!("{file}.stl"),
+            "tris_f32": format!("{file}.tris.f32"),
+            "triangles": t.mesh.triangles.len(),
+            "chord_error_mm": t.chord_error_mm,
+        }));
+    }
+    // The net path length per material (what the EXR layers hold), one f32 layer per material
+    // in the beam.
     let lengths = first.lengths_mm.as_ref().expect("kept lengths");
-    let m = setup.index(
-        &plan.models[femur].volumes[0]
-            .material
-            .clone()
-            .expect("a material"),
-    );
-    let l: Vec<u8> = lengths[m]
+    let in_beam: Vec<usize> = (0..lengths.len())
+        .filter(|&m| !lengths[m].is_empty())
+        .collect();
+    let l: Vec<u8> = in_beam
         .iter()
+        .flat_map(|&m| lengths[m].iter())
         .flat_map(|&x| (x as f32).to_le_bytes())
         .collect();
     write(dir.join(format!("{name}.lengths.f32")), &l);
@@ -211,13 +272,12 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         "source_mm": arr(source),
         "detector": detector_json(&frame),
         "i_max": det.i_max(),
-        "stl": format!("{name}.stl"),
-        "tris_f32": format!("{name}.tris.f32"),
+        "parts_exported": part_records,
         "lengths_f32": format!("{name}.lengths.f32"),
+        "lengths_materials": in_beam,
         "image_u16": format!("{name}.image.u16"),
         "open_u16": format!("{name}.open.u16"),
         "spectrum_tsv": format!("{name}.spectrum.tsv"),
-        "material_index": m,
         "materials": materials,
         "energies_kev": setup.energies_kev,
         "spectrum_photons": setup.spectrum_photons,
@@ -254,6 +314,16 @@ fn main() {
     for (name, rel, export) in [
         ("mono", "bench/attenuation/mono.toml", true),
         ("poly", "bench/attenuation/poly.toml", true),
+        (
+            "realistic_mono",
+            "bench/attenuation/realistic_mono.toml",
+            true,
+        ),
+        (
+            "realistic_poly",
+            "bench/attenuation/realistic_poly.toml",
+            true,
+        ),
         ("realistic", "scenarios/biplanar_realistic.toml", false),
     ] {
         if wanted(name) {
