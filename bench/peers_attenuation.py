@@ -449,7 +449,8 @@ def cmd_summary(args):
         if key in sc:
             spec = "60 keV" if sc[key]["bins"] == 1 else f"{sc[key]['bins']} bins"
             rows.append((f"{what}, {spec}", sc[key]["render_ms"], (key, "xray_clean_ms")))
-            rows.append((f"{what}, {spec}, with noise", sc[key]["render_ms"], (key, "xray_noise_ms")))
+            noisy = sc[key].get("render_1000_photons_ms", sc[key]["render_ms"])
+            rows.append((f"{what}, {spec}, with noise (1000 photons/px)", noisy, (key, "xray_noise_ms")))
     if "realistic" in sc:
         rows.append((f"biplanar_realistic as shipped (CsI, 10 mAs), {sc['realistic']['bins']} bins, with noise", sc["realistic"]["render_ms"], None))
     for label, ours, gkey in rows:
@@ -459,7 +460,8 @@ def cmd_summary(args):
         lines.append(f"| {label} | {ours:.1f} ms | {'—' if g is None else f'{g:.1f} ms'} | {ratio} |")
     lines.append(
         f"- rsasim: median of {a['repeats']} on {next(iter(sc.values()))['threads']} threads, noise always included "
-        f"(quantum noise is part of `attenuation::render`); gVXR: {gv['peer'] + ', ' + gv['renderer'] if gv else 'not measured'}."
+        f"(quantum noise is part of `attenuation::render`); rows without noise: rsasim at the scene's 1e12 photons per pixel, "
+        f"rows with noise: both at 1000 photons per pixel; gVXR: {gv['peer'] + ', ' + gv['renderer'] if gv else 'not measured'}."
     )
     res["timing"] = tm
     text = "\n".join(lines)
