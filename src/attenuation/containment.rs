@@ -69,7 +69,7 @@ pub fn in_cylinder(centre: DVec3, radius_mm: f64, radii: [f64; 2], half_length: 
 pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
     let dir = DVec3::new(
         0.577_215_664_901_532_9,
-        0.301_029_995_663_981_2,
+        std::f64::consts::LOG10_2,
         0.759_134_453_1,
     )
     .normalize();

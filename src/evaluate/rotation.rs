@@ -123,6 +123,8 @@ mod tests {
         let m = rotation_from_quaternion(h, 0.0, 0.0, h).unwrap().rotation;
         assert!((m - rotation_xyz_deg([0.0, 0.0, 90.0])).abs_diff_eq(DMat3::ZERO, 1e-12));
         assert!(rotation_from_quaternion(1.0, 0.1, 0.0, 0.0).is_err());
+        // 1/√2 rounded to 6 digits on purpose: a quaternion as a file would hold it.
+        #[allow(clippy::approx_constant)]
         let rounded = rotation_from_quaternion(0.707107, 0.0, 0.0, 0.707107).unwrap();
         assert!(rounded.repaired);
         assert!((rounded.rotation - m).abs_diff_eq(DMat3::ZERO, 1e-6));
