@@ -65,7 +65,9 @@ pub fn in_cylinder(centre: DVec3, radius_mm: f64, radii: [f64; 2], half_length: 
 
 /// A sphere (centre in the mesh's frame, mm) against a closed mesh: the centre's side by the
 /// parity of crossings of a ray (a fixed, irrational direction, so it misses edges and vertices
-/// of any practical mesh), the distance to the surface as the least distance to a triangle.
+/// of any practical mesh), the distance to the surface as the least distance to a triangle (only
+/// triangles whose bounding box comes within the radius are measured: only a distance below the
+/// radius decides anything).
 pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
     let dir = DVec3::new(
         0.577_215_664_901_532_9,
@@ -76,12 +78,20 @@ pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
     let mut crossings = 0u32;
     let mut distance = f64::INFINITY;
     let v = |i: u32| DVec3::from_array(mesh.vertices[i as usize].map(f64::from));
+    // Only `distance < radius` matters: a triangle whose bounding box lies farther than the
+    // radius (with a relative margin far above the distance's rounding) cannot change it, so its
+    // exact distance is not computed.
+    let reach2 = radius_mm * radius_mm * (1.0 + 1e-9);
     for t in &mesh.triangles {
         let [a, b, c] = t.map(v);
         if ray_hits(centre, dir, a, b, c) {
             crossings += 1;
         }
-        distance = distance.min(point_triangle_distance(centre, a, b, c));
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        let gap = (lo - centre).max(centre - hi).max(DVec3::ZERO);
+        if gap.length_squared() <= reach2 {
+            distance = distance.min(point_triangle_distance(centre, a, b, c));
+        }
     }
     place(crossings % 2 == 1, distance, radius_mm)
 }
@@ -152,6 +162,36 @@ mod tests {
             in_cylinder(DVec3::new(0.0, 0.0, 49.6), 0.5, r, 50.0),
             Placement::Across
         );
+    }
+
+    /// Measuring only the triangles whose box comes within the radius gives the placement of
+    /// measuring every triangle, for centres all around a coarse sphere's surface (where the
+    /// nearest triangle decides between inside, across and outside).
+    #[test]
+    fn pruned_distances_give_the_placement_of_all_distances() {
+        let m = TriMesh::uv_sphere(10.0, 12, 24);
+        let all = |centre: DVec3, r: f64| {
+            let v = |i: u32| DVec3::from_array(m.vertices[i as usize].map(f64::from));
+            let distance = m
+                .triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(v);
+                    point_triangle_distance(centre, a, b, c)
+                })
+                .fold(f64::INFINITY, f64::min);
+            place(in_mesh(centre, 0.0, &m) != Placement::Outside, distance, r)
+        };
+        let mut seen = [0usize; 3];
+        for i in 0..4000u32 {
+            let (theta, phi) = (0.7853 * f64::from(i % 97), 0.0311 * f64::from(i % 101));
+            let dir = DVec3::new(phi.sin() * theta.cos(), phi.sin() * theta.sin(), phi.cos());
+            let centre = dir * (8.8 + 2.4 * f64::from(i) / 4000.0);
+            let p = in_mesh(centre, 0.5, &m);
+            assert_eq!(p, all(centre, 0.5), "centre {centre}");
+            seen[p as usize] += 1;
+        }
+        assert!(seen.iter().all(|&n| n > 100), "{seen:?}");
     }
 
     #[test]
