@@ -119,20 +119,27 @@ impl Cost {
             .map(|d| u64::from(d.pixels[0]) * u64::from(d.pixels[1]))
             .max()
             .unwrap_or(0);
-        // Attenuation mode also holds a path-length image (f64) per material in use, the
-        // fluence, the metal map and the response's buffers (8 bytes each per pixel).
+        // Attenuation mode also holds each volume's path lengths over its shadow's rectangle
+        // (f64; at most the whole image each, beads are negligible) and, with
+        // `path_length_layers`, a net length image per material (f64) and its EXR samples (f32).
         let per_pixel = if s.imaging.is_attenuation() {
-            let materials = models
-                .iter()
-                .flat_map(|m| {
-                    m.volumes
-                        .iter()
-                        .filter_map(|v| v.material.as_deref())
-                        .chain((!m.markers.is_empty()).then_some(m.bead_material.as_str()))
-                })
-                .collect::<std::collections::BTreeSet<_>>()
-                .len() as u64;
-            BYTES_PER_PIXEL_IN_FLIGHT + 8 * (materials + 4)
+            let volumes: u64 = models.iter().map(|m| m.volumes.len() as u64).sum();
+            let layers = if s.imaging.path_length_layers {
+                let materials = models
+                    .iter()
+                    .flat_map(|m| {
+                        m.volumes
+                            .iter()
+                            .filter_map(|v| v.material.as_deref())
+                            .chain((!m.markers.is_empty()).then_some(m.bead_material.as_str()))
+                    })
+                    .collect::<std::collections::BTreeSet<_>>()
+                    .len() as u64;
+                12 * materials
+            } else {
+                0
+            };
+            BYTES_PER_PIXEL_IN_FLIGHT + 8 * volumes + layers
         } else {
             BYTES_PER_PIXEL_IN_FLIGHT
         };
