@@ -56,6 +56,15 @@ def read_mask(scene_dir, name, w, h):
     return np.fromfile(Path(scene_dir) / name, dtype=np.uint8).reshape(h, w).astype(bool)
 
 
+def read_peer(scene_dir, name):
+    """The peer's `<name>.json` in `scene_dir`, or None when that peer did not run."""
+    try:
+        with open(Path(scene_dir) / f"{name}.json") as f:
+            return json.load(f)
+    except OSError:
+        return None
+
+
 def median_ms(samples):
     return 1e3 * statistics.median(samples)
 
@@ -245,15 +254,7 @@ def machine():
 
 def cmd_summary(args):
     d = Path(args.scene_dir)
-
-    def peer(name):
-        try:
-            with open(d / f"{name}.json") as f:
-                return json.load(f)
-        except OSError:
-            return None
-
-    embree, gv = peer("embree"), peer("gvxr")
+    embree, gv = read_peer(d, "embree"), read_peer(d, "gvxr")
     protocol = None
     if args.protocol:
         try:

@@ -31,7 +31,7 @@ import sys
 import time
 from pathlib import Path
 
-from peers import gvxr_geometry, gvxr_time, machine, median_ms, pixel_rays, write_json
+from peers import gvxr_geometry, gvxr_time, machine, median_ms, pixel_rays, read_peer, write_json
 
 # Scenes whose transmission is compared pixel by pixel; `realistic_poly` is timed only (with
 # constant μ per mesh gVXR cannot net the nesting out over a spectrum, and with mixtures it
@@ -285,15 +285,7 @@ def cmd_summary(args):
 
     d = Path(args.dir)
     a = load(d)
-
-    def peer(name):
-        try:
-            with open(d / f"{name}.json") as f:
-                return json.load(f)
-        except OSError:
-            return None
-
-    gv, emb = peer("gvxr_attenuation"), peer("embree_attenuation")
+    gv, emb = read_peer(d, "gvxr_attenuation"), read_peer(d, "embree_attenuation")
     res = {"machine": machine(), "rsasim_version": a["rsasim_version"], "transmission": {}, "lengths": None}
     lines = [f"Machine: {machine()}", ""]
     fmt = lambda s, k, pct=True: "n/a" if s.get("n", 0) == 0 else (f"{100 * s[k]:.3g} %" if pct else f"{s[k]:.3g}")  # noqa: E731

@@ -169,12 +169,7 @@ fn net_lengths(layers: &[Layer], m: usize, w: usize, h: usize) -> Vec<f64> {
         return image;
     }
     image.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
-        let span = response::material_row(layers, m, j, row);
-        for l in &mut row[span] {
-            if *l < 0.0 {
-                *l = 0.0;
-            }
-        }
+        response::net_material_row(layers, m, j, row);
     });
     image
 }

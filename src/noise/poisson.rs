@@ -189,52 +189,24 @@ impl Poisson {
         if !(lambda >= PTRS_THRESHOLD && lambda.is_finite()) {
             return Poisson::new(lambda).sample(rng);
         }
-        let (p, inv_alpha) = Ptrs::without_logs(lambda);
-        p.sample_lazy_logs(inv_alpha, rng)
-    }
-
-    /// One sample per mean, in order: `out[i]` gets exactly
-    /// `Poisson::sample_with_mean(lambdas[i], rng)`, and `rng` ends at the same position.
-    ///
-    /// The PTRS constants of a block of means (a square root and two divisions each, the same
-    /// IEEE operations as [`Poisson::sample_with_mean`]) are computed in one loop the compiler
-    /// vectorises, before the trials of the block run one by one; a mean below 10 takes the
-    /// same path as in [`Poisson::sample_with_mean`].
-    ///
-    /// # Panics
-    /// When the slices differ in length, or a mean is negative, NaN or infinite.
-    pub fn sample_each(lambdas: &[f64], rng: &mut impl Rng, out: &mut [u64]) {
-        assert_eq!(lambdas.len(), out.len(), "one sample per mean");
-        const CHUNK: usize = 64;
-        let mut b = [0.0f64; CHUNK];
-        let mut inv_alpha = [0.0f64; CHUNK];
-        let mut v_r = [0.0f64; CHUNK];
-        for (ls, os) in lambdas.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
-            let n = ls.len();
-            // `f64::sqrt` and `libm::sqrt` are both the correctly rounded IEEE square root.
-            for k in 0..n {
-                let bk = 0.931 + 2.53 * ls[k].sqrt();
-                b[k] = bk;
-                inv_alpha[k] = 1.1239 + 1.1328 / (bk - 3.4);
-                v_r[k] = 0.9277 - 3.6224 / (bk - 2.0);
-            }
-            for k in 0..n {
-                let lambda = ls[k];
-                os[k] = if lambda >= PTRS_THRESHOLD && lambda.is_finite() {
-                    let a = -0.059 + 0.02483 * b[k];
-                    let p = Ptrs {
-                        lambda,
-                        ln_lambda: f64::NAN,
-                        a,
-                        two_a: 2.0 * a,
-                        b: b[k],
-                        ln_inv_alpha: f64::NAN,
-                        v_r: v_r[k],
-                    };
-                    p.sample_lazy_logs(inv_alpha[k], rng)
-                } else {
-                    Poisson::new(lambda).sample(rng)
-                };
+        let (mut p, inv_alpha) = Ptrs::without_logs(lambda);
+        let mut have_logs = false;
+        loop {
+            let x1 = rng.next_u64();
+            let x2 = rng.next_u64();
+            let (k, us, v, trial) = p.trial(x1, x2);
+            match trial {
+                Trial::Accept => return k as u64,
+                Trial::Reject => {}
+                Trial::Slow => {
+                    if !have_logs {
+                        p.set_logs(inv_alpha);
+                        have_logs = true;
+                    }
+                    if p.decide_slow(k, us, v) {
+                        return k as u64;
+                    }
+                }
             }
         }
     }
@@ -319,31 +291,6 @@ impl Ptrs {
             v_r,
         };
         (ptrs, inv_alpha)
-    }
-
-    /// One sample with the constants of [`Ptrs::without_logs`]: the logarithms are computed
-    /// (exactly as [`Poisson::new`] does) only when a trial reaches the full acceptance test.
-    #[inline(always)]
-    fn sample_lazy_logs(mut self, inv_alpha: f64, rng: &mut impl Rng) -> u64 {
-        let mut have_logs = false;
-        loop {
-            let x1 = rng.next_u64();
-            let x2 = rng.next_u64();
-            let (k, us, v, trial) = self.trial(x1, x2);
-            match trial {
-                Trial::Accept => return k as u64,
-                Trial::Reject => {}
-                Trial::Slow => {
-                    if !have_logs {
-                        self.set_logs(inv_alpha);
-                        have_logs = true;
-                    }
-                    if self.decide_slow(k, us, v) {
-                        return k as u64;
-                    }
-                }
-            }
-        }
     }
 
     /// Computes `ln λ` and `ln α⁻¹` (needed only by the full acceptance test).
@@ -844,30 +791,6 @@ mod tests {
                 let y = Poisson::new(lambda).sample(&mut b);
                 assert_eq!(x, y, "λ={lambda}");
             }
-        }
-        assert_eq!(a.next_u64(), b.next_u64(), "same generator position");
-    }
-
-    /// `sample_each` gives `sample_with_mean`'s values one by one and leaves the generator at
-    /// the same place, across block boundaries, with means below and above the switch to PTRS,
-    /// 0, and means so large that the full test always runs its exact fallback.
-    #[test]
-    fn sample_each_equals_sample_with_mean_one_by_one() {
-        let mut lambdas: Vec<f64> = CHECK_LAMBDAS.to_vec();
-        lambdas.extend([0.0, 1e-9, 9.999999, 10.0, 10.000001, 1e6, 3e9, 1e12, 1e15]);
-        for i in 0..10_007 {
-            lambdas.push(if i % 5 == 0 {
-                0.0
-            } else {
-                0.71 * i as f64 + 0.003 * (i % 13) as f64
-            });
-        }
-        let mut a = rng(41);
-        let mut b = rng(41);
-        let mut out = vec![u64::MAX; lambdas.len()];
-        Poisson::sample_each(&lambdas, &mut a, &mut out);
-        for (&lambda, &x) in lambdas.iter().zip(&out) {
-            assert_eq!(x, Poisson::sample_with_mean(lambda, &mut b), "λ={lambda}");
         }
         assert_eq!(a.next_u64(), b.next_u64(), "same generator position");
     }

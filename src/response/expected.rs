@@ -123,12 +123,7 @@ pub(crate) fn row_expected(
     s.rows.resize(active.len() * w, 0.0);
     let (mut lo, mut hi) = (w, 0);
     for (&m, row) in active.iter().zip(s.rows.chunks_exact_mut(w.max(1))) {
-        let span = super::material_row(scene.layers, m, j, row);
-        for l in &mut row[span.clone()] {
-            if *l < 0.0 {
-                *l = 0.0;
-            }
-        }
+        let span = super::net_material_row(scene.layers, m, j, row);
         if !span.is_empty() {
             lo = lo.min(span.start);
             hi = hi.max(span.end);

@@ -82,6 +82,24 @@ pub fn material_row(layers: &[Layer], material: usize, j: usize, out: &mut [f64]
     if lo < hi { lo..hi } else { 0..0 }
 }
 
+/// [`material_row`] with a negative sum (rounding of nested solids) set to 0: material
+/// `material`'s net path length on row `j`, as the response uses it. Returns the columns
+/// touched by some layer.
+pub fn net_material_row(
+    layers: &[Layer],
+    material: usize,
+    j: usize,
+    out: &mut [f64],
+) -> Range<usize> {
+    let span = material_row(layers, material, j, out);
+    for l in &mut out[span.clone()] {
+        if *l < 0.0 {
+            *l = 0.0;
+        }
+    }
+    span
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -120,6 +138,20 @@ mod tests {
         assert_eq!(row, [0.0, 4.0, 4.5, 6.0, 0.0, 0.0]);
         assert_eq!(material_row(&layers, 1, 2, &mut row), 0..6);
         assert_eq!(row, [3.0, 3.25, 3.5, 3.75, 4.0, 4.25]);
+        // A nested layer larger than its container: the raw sum goes negative, the net one is 0.
+        let big = [9.0];
+        let mut over = layers.to_vec();
+        over.push(Layer {
+            material: 0,
+            sign: -1.0,
+            columns: 3..4,
+            rows: 1..2,
+            length_mm: &big,
+        });
+        material_row(&over, 0, 1, &mut row);
+        assert_eq!(row, [0.0, 1.0, 2.0, -6.0, 0.0, 0.0]);
+        assert_eq!(net_material_row(&over, 0, 1, &mut row), 1..4);
+        assert_eq!(row, [0.0, 1.0, 2.0, 0.0, 0.0, 0.0]);
         let bad = Layer {
             material: 0,
             sign: 1.0,

@@ -38,8 +38,7 @@
 //! Row `j` (row 0 is the first stored row) draws from `key.row_rng(j)` (the stream derivation of
 //! [`crate::noise::stream`]); its pixels draw left to right, one Poisson sample each, with the
 //! pixel's own mean λ = Q ([`Poisson::sample_with_mean`], the same values as
-//! `Poisson::new(Q).sample`; a row's samples are drawn by [`Poisson::sample_each`], which gives
-//! exactly those values in that order). A sample consumes a variable number of `u64`s (none for λ = 0), so
+//! `Poisson::new(Q).sample`). A sample consumes a variable number of `u64`s (none for λ = 0), so
 //! unlike binary mode a pixel's noise depends on the means of the pixels before it in its row.
 //! Means outside `[0, LAMBDA_MAX]` (only from invalid inputs; see [`check_inputs`]) are replaced by
 //! 0 (negative or NaN) or [`LAMBDA_MAX`]. Rows are independent and run in parallel (rayon): the
@@ -66,7 +65,7 @@ mod layer;
 mod tests;
 
 pub use fluence::{PointSourceFluence, point_source_fluence};
-pub use layer::{Layer, material_row};
+pub use layer::{Layer, material_row, net_material_row};
 
 use rayon::prelude::*;
 
@@ -435,10 +434,6 @@ struct RenderScratch {
     fluence: Vec<f64>,
     quanta: Vec<f64>,
     energy_kev: Vec<f64>,
-    /// The Poisson means of the row (`quanta` sanitised).
-    lambdas: Vec<f64>,
-    /// The row's photon counts.
-    counts: Vec<u64>,
 }
 
 /// Renders one attenuation image: expected quanta, Poisson noise on every pixel, signal, then
@@ -493,18 +488,11 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             let fluence = &s.fluence;
             let f_max = fluence.iter().fold(0.0f64, |m, &f| m.max(f));
             let mut rng = key.row_rng(j as u32);
-            s.lambdas.clear();
-            s.lambdas.extend(
-                s.quanta
-                    .iter()
-                    .map(|&q| if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 }),
-            );
-            s.counts.resize(w, 0);
-            Poisson::sample_each(&s.lambdas, &mut rng, &mut s.counts);
             let mut saturated = 0usize;
             for i in 0..w {
                 let q = s.quanta[i];
-                let n = s.counts[i] as f64;
+                let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
+                let n = Poisson::sample_with_mean(lambda, &mut rng) as f64;
                 let signal = if !integrating {
                     n
                 } else if q > 0.0 {
