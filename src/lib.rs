@@ -12,6 +12,7 @@ pub mod phantom;
 pub mod random;
 pub mod reconstruct;
 pub mod response;
+pub mod sampling;
 pub mod scenario;
 pub mod simulate;
 pub mod spectrum;

@@ -23,6 +23,7 @@ use crate::output::{
     Truth,
 };
 use crate::phantom::{self, PhantomModel};
+use crate::sampling::Sampling;
 use crate::scenario::hex;
 use crate::scenario::{self, ImageFormat, LoadedScenario, Scenario};
 use crate::trace::{self, MeshBvh, Object};
@@ -213,13 +214,14 @@ pub fn simulate(
         .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
         .collect();
 
+    let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
     let mut files = write_phantoms(plan, root, truth_root.is_some())?;
     let layout = truth_root.map(|_| Layout::Images);
     files.push(write_readme(plan, root, layout)?);
     let per_run: Vec<RunFiles> = plan
         .runs
         .par_iter()
-        .map(|run| write_run(plan, &bvhs, run, root, truth_root, progress))
+        .map(|run| write_run(plan, &bvhs, &sampling, run, root, truth_root, progress))
         .collect::<std::io::Result<_>>()?;
     let image_files = per_run.iter().map(|r| r.images.len()).sum();
     let mut truth_files = Vec::new();
@@ -529,6 +531,7 @@ pub fn noisy_image(
 fn write_run(
     plan: &Plan,
     bvhs: &[Option<Arc<MeshBvh>>],
+    sampling: &Sampling,
     run: &Run,
     root: &Path,
     truth_root: Option<&Path>,
@@ -626,8 +629,21 @@ fn write_run(
                         Some(image.saturated as u64),
                     )
                 }
-                _ => (
+                _ if sampling.is_point() => (
                     noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key),
+                    None,
+                    None,
+                ),
+                _ => (
+                    crate::sampling::coverage::noisy_image(
+                        &frame,
+                        source,
+                        &objects,
+                        sampling,
+                        run.noise_level,
+                        det.i_max(),
+                        &key,
+                    ),
                     None,
                     None,
                 ),

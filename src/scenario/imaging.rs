@@ -22,7 +22,7 @@ pub enum ImagingMode {
 }
 
 /// How images are formed. Default: the paper's binary mode; everything else here applies to
-/// `mode = "attenuation"` only.
+/// `mode = "attenuation"` only, except `pixel_samples` and `focal_spot` (both modes).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Imaging {
@@ -60,6 +60,75 @@ pub struct Imaging {
     /// pixel's ray in it (truth for image-processing research). Default false.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub path_length_layers: bool,
+    /// Area sampling (both modes): s×s rays per pixel on a regular grid over its area (at
+    /// `(i + (a + ½)/s, j + (b + ½)/s)`), averaged, so a pixel an edge crosses gets a partial
+    /// value. Default 1: one ray to the pixel centre (the paper). At most 16.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixel_samples: Option<u32>,
+    /// A finite focal spot (both modes), sampled by k×k sub-sources. Default: a point source.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focal_spot: Option<FocalSpot>,
+}
+
+/// The intensity profile of a focal spot.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SpotProfile {
+    /// Uniform over a square of side `size_mm` (the default).
+    #[default]
+    Uniform,
+    /// A round Gaussian whose full width at half maximum is `size_mm`.
+    Gaussian,
+}
+
+/// A detector axis, with its sign: where the anode lies, seen from the detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+pub enum AxisDirection {
+    /// Along +r (increasing column index).
+    #[serde(rename = "+r")]
+    PlusR,
+    /// Along −r.
+    #[serde(rename = "-r")]
+    MinusR,
+    /// Along +c (increasing row index).
+    #[serde(rename = "+c")]
+    PlusC,
+    /// Along −c.
+    #[serde(rename = "-c")]
+    MinusC,
+}
+
+/// The X-ray tube's focal spot: a finite source instead of a point, the same for every source.
+/// Its centre is the source position (the truth's source position is the focal-spot centre).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FocalSpot {
+    /// The spot's width, mm, in the plane through the source parallel to the detector (the
+    /// effective spot seen from the detector): the side of a uniform square or the FWHM of a
+    /// Gaussian. IEC 60336 nominal sizes: 0.3, 0.6, 1.0, 1.2 mm.
+    pub size_mm: f64,
+    /// `"uniform"` (default) or `"gaussian"`.
+    #[serde(default)]
+    pub profile: SpotProfile,
+    /// Sub-sources per axis, k (k×k in all), 1 to 16. Default 3. Uniform: the centres of a
+    /// k×k grid of equal cells; Gaussian: the k-point Gauss–Hermite nodes and weights.
+    #[serde(default = "FocalSpot::default_samples")]
+    pub samples: u32,
+    /// Anode heel effect (attenuation mode): the fluence falls linearly towards the anode side by
+    /// this many percent per 100 mm along the detector axis `anode_direction`, zero at the
+    /// detector centre. Default 0 (none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heel_percent_per_100_mm: Option<f64>,
+    /// The detector axis pointing towards the anode side: `"+r"`, `"-r"`, `"+c"` or `"-c"`.
+    /// Default `"-c"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anode_direction: Option<AxisDirection>,
+}
+
+impl FocalSpot {
+    fn default_samples() -> u32 {
+        3
+    }
 }
 
 impl Imaging {
@@ -76,6 +145,17 @@ impl Imaging {
     /// The bin limit, default 40.
     pub fn max_bins(&self) -> usize {
         self.max_energy_bins.unwrap_or(40) as usize
+    }
+
+    /// Rays per pixel side, s (default 1).
+    pub fn samples_per_side(&self) -> u32 {
+        self.pixel_samples.unwrap_or(1)
+    }
+
+    /// Whether a pixel is one ray from a point source to its centre (the paper): no area
+    /// sampling and no focal spot.
+    pub fn is_point_sampled(&self) -> bool {
+        self.samples_per_side() == 1 && self.focal_spot.is_none()
     }
 }
 

@@ -11,6 +11,9 @@ use crate::material;
 /// the Poisson sampler's counts leave the exactly representable range of its arithmetic.
 const MAX_PHOTONS_PER_PIXEL: f64 = 1e12;
 
+/// Most rays per pixel side (`pixel_samples`) and sub-sources per focal-spot axis (`samples`).
+pub const MAX_SAMPLES_PER_SIDE: u32 = 16;
+
 /// All findings on the image model of `s`.
 pub fn check(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     let mut c = Check {
@@ -20,6 +23,7 @@ pub fn check(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     };
     c.user_materials();
     c.relations();
+    c.sampling();
     if s.imaging.is_attenuation() {
         c.attenuation();
     } else {
@@ -193,6 +197,64 @@ impl Check<'_> {
                             ph.id
                         ),
                         "remove its [randomize] table: it moves with the phantom named in fixed_to",
+                    );
+                }
+            }
+        }
+    }
+
+    /// `pixel_samples` and `focal_spot` (both modes).
+    fn sampling(&mut self) {
+        let im = &self.s.imaging;
+        let ip = root().key("imaging");
+        if let Some(n) = im.pixel_samples {
+            if !(1..=MAX_SAMPLES_PER_SIDE).contains(&n) {
+                self.err(
+                    ip.key("pixel_samples"),
+                    format!("pixel_samples = {n} is out of range"),
+                    format!("give 1 (one ray to the pixel centre) to {MAX_SAMPLES_PER_SIDE} rays per pixel side; 4 puts a 1 mm bead's centroid within 0.01 px"),
+                );
+            }
+        }
+        let Some(f) = &im.focal_spot else { return };
+        let fp = ip.key("focal_spot");
+        if !(f.size_mm.is_finite() && f.size_mm > 0.0 && f.size_mm <= 10.0) {
+            self.err(
+                fp.key("size_mm"),
+                format!("focal spot size {} mm is out of range", f.size_mm),
+                "give the spot's width in mm, above 0 and at most 10 (IEC 60336 nominal sizes: 0.3, 0.6, 1.0, 1.2)",
+            );
+        }
+        if !(1..=MAX_SAMPLES_PER_SIDE).contains(&f.samples) {
+            self.err(
+                fp.key("samples"),
+                format!("samples = {} is out of range", f.samples),
+                format!(
+                    "give 1 to {MAX_SAMPLES_PER_SIDE} sub-sources per axis (k×k in all), e.g. 3"
+                ),
+            );
+        }
+        if let Some(h) = f.heel_percent_per_100_mm {
+            if !(h.is_finite() && (-50.0..=50.0).contains(&h)) {
+                self.err(
+                    fp.key("heel_percent_per_100_mm"),
+                    format!("heel gradient {h} % per 100 mm is out of range"),
+                    "give the fall of the fluence towards the anode in percent per 100 mm, from −50 to 50 (clinical tubes: about 5–15)",
+                );
+            }
+        }
+        if !im.is_attenuation() {
+            for (key, given) in [
+                (
+                    "heel_percent_per_100_mm",
+                    f.heel_percent_per_100_mm.is_some(),
+                ),
+                ("anode_direction", f.anode_direction.is_some()),
+            ] {
+                if given {
+                    self.warn(
+                        fp.key(key),
+                        format!("imaging.focal_spot.{key} applies to mode = \"attenuation\" only and is ignored in binary mode"),
                     );
                 }
             }
