@@ -47,6 +47,7 @@ use rsasim::attenuation::{self, Part};
 use rsasim::geometry::DVec3;
 use rsasim::noise::NoiseKey;
 use rsasim::phantom::TriMesh;
+use rsasim::sampling::Sampling;
 use rsasim::simulate::{self, Allowances, Plan};
 use rsasim::trace::{MeshBvh, Object};
 use serde_json::{Value, json};
@@ -110,6 +111,16 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         &det.id,
     );
     let factor = run.exposure_factor.unwrap_or(1.0);
+    // The scene's own sampling and detector unsharpness (none unless its [imaging] asks).
+    let sampling = Sampling::from_imaging(&s.imaging);
+    let unsharp = setup.unsharpness(&frame);
+    let electronic_key = NoiseKey::derive_electronic(
+        s.seed,
+        run.noise_level_index,
+        run.run_index,
+        &exposure.id,
+        &det.id,
+    );
     let render = |parts: &[Part], keep: bool, factor: f64| {
         attenuation::render(
             setup,
@@ -120,6 +131,11 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
             det.i_max(),
             &key,
             keep,
+            attenuation::Formation {
+                sampling: &sampling,
+                unsharp: &unsharp,
+                electronic_key: &electronic_key,
+            },
         )
         .unwrap_or_else(|e| panic!("{rel}: {e}"))
     };

@@ -595,6 +595,14 @@ fn write_run(
             );
             let (pixels, visibility, saturated) = match (&plan.setup, &parts) {
                 (Some(setup), Some(parts)) => {
+                    let electronic_key = NoiseKey::derive_electronic(
+                        s.seed,
+                        run.noise_level_index,
+                        run.run_index,
+                        &exposure.id,
+                        &det.id,
+                    );
+                    let unsharp = setup.unsharpness(&frame);
                     let image = attenuation::render(
                         setup,
                         parts,
@@ -604,6 +612,11 @@ fn write_run(
                         det.i_max(),
                         &key,
                         s.imaging.path_length_layers,
+                        attenuation::Formation {
+                            sampling,
+                            unsharp: &unsharp,
+                            electronic_key: &electronic_key,
+                        },
                     )
                     .map_err(|e| {
                         // The scene itself is wrong (a nested solid pokes out): an input error.

@@ -8,7 +8,8 @@ use crate::geometry::DetectorFrame;
 use crate::noise::NoiseKey;
 use rayon::prelude::*;
 
-use crate::response::{self, Fluence, Layer, Scene};
+use crate::response::{self, Fluence, Layer, Scene, Unsharpness};
+use crate::sampling::Sampling;
 use crate::trace::{Object, PathLengths, path_lengths};
 
 use super::scene::Part;
@@ -45,12 +46,35 @@ pub struct AttenuationImage {
     pub lengths_mm: Option<Vec<Vec<f64>>>,
 }
 
+/// How an image is formed beyond one ray per pixel centre and quantum noise.
+#[derive(Clone, Copy)]
+pub struct Formation<'a> {
+    /// Pixel samples, focal spot, heel effect.
+    pub sampling: &'a Sampling,
+    /// Scatter, detector blur and electronic noise.
+    pub unsharp: &'a Unsharpness,
+    /// The electronic noise's key (`NoiseKey::derive_electronic`).
+    pub electronic_key: &'a NoiseKey,
+}
+
+impl Formation<'_> {
+    /// One ray to each pixel centre from a point source and nothing beyond quantum noise: the
+    /// sharp image, rendered in one pass.
+    fn is_sharp(&self) -> bool {
+        self.sampling.is_point() && *self.unsharp == Unsharpness::default()
+    }
+}
+
 /// Renders the parts of one exposure on one detector at exposure factor `factor`.
 ///
 /// Every part's path lengths over its shadow's rectangle become one layer of its material and,
 /// for a nested part, one negative layer of the material it displaces (parts in order); the
 /// response sums them per material row by row, so no W×H image per material is held unless
-/// `keep_lengths` asks for them.
+/// `keep_lengths` asks for them. Bead visibility, the nesting check and the path-length layers
+/// come from the rays to the pixel centres from the spot's centre; with area sampling or a focal
+/// spot the image itself is the average over the pixel samples and sub-sources
+/// ([`super::sampled`]), and with scatter, blur or electronic noise the detector applies them
+/// ([`response::render_expected`]).
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     setup: &Setup,
@@ -61,6 +85,7 @@ pub fn render(
     i_max: u16,
     key: &NoiseKey,
     keep_lengths: bool,
+    formation: Formation,
 ) -> Result<AttenuationImage, String> {
     let [w, h] = frame.pixels.map(|n| n as usize);
     // Parts in parallel (a mesh is scan-converted on one thread), each part's lengths its own.
@@ -68,14 +93,7 @@ pub fn render(
         .par_iter()
         .map(|part| path_lengths(frame, source_mm, &part.object))
         .collect();
-    let mut layers = Vec::with_capacity(2 * parts.len());
-    for (part, shadow) in parts.iter().zip(&shadows) {
-        let Some(pl) = shadow else { continue };
-        layers.push(layer(part.material, 1.0, pl));
-        if let Some(p) = part.parent {
-            layers.push(layer(parts[p].material, -1.0, pl));
-        }
-    }
+    let layers = layers_of(parts, &shadows);
     check_nesting(setup, parts, &layers, w)?;
     let fluence = response::PointSourceFluence::new(frame, source_mm);
     let beam = setup.beam(frame, source_mm, factor);
@@ -88,7 +106,30 @@ pub fn render(
         layers: &layers,
         fluence: Fluence::PointSource(&fluence),
     };
-    let rendered = response::render(&beam, &detector, &scene, key);
+    let rendered = if formation.is_sharp() {
+        response::render(&beam, &detector, &scene, key)
+    } else {
+        let expected = if formation.sampling.is_point() {
+            response::expected(&beam, &detector, &scene)
+        } else {
+            super::sampled::expected(
+                setup,
+                parts,
+                frame,
+                source_mm,
+                &beam,
+                &detector,
+                formation.sampling,
+            )
+        };
+        response::render_expected(
+            &detector,
+            &expected,
+            formation.unsharp,
+            key,
+            formation.electronic_key,
+        )
+    };
     // Metal besides beads at a pixel: some metal volume's path length there is positive.
     let metal_at = |i: u32, j: u32| {
         parts.iter().zip(&shadows).any(|(part, shadow)| {
@@ -148,6 +189,20 @@ pub fn render(
         beads,
         lengths_mm,
     })
+}
+
+/// The layers of the parts' shadows: each part's lengths added to its material and, for a
+/// nested part, taken from the material it displaces (parts in order).
+pub(super) fn layers_of<'a>(parts: &[Part], shadows: &'a [Option<PathLengths>]) -> Vec<Layer<'a>> {
+    let mut layers = Vec::with_capacity(2 * parts.len());
+    for (part, shadow) in parts.iter().zip(shadows) {
+        let Some(pl) = shadow else { continue };
+        layers.push(layer(part.material, 1.0, pl));
+        if let Some(p) = part.parent {
+            layers.push(layer(parts[p].material, -1.0, pl));
+        }
+    }
+    layers
 }
 
 /// The layer of `pl` added to (`sign` +1) or taken from (−1) material `material`.

@@ -7,9 +7,10 @@
 pub mod check;
 pub mod containment;
 pub mod image;
+pub mod sampled;
 pub mod scene;
 pub mod setup;
 
-pub use image::{AttenuationImage, BeadVisibility, render};
+pub use image::{AttenuationImage, BeadVisibility, Formation, render};
 pub use scene::{Part, parts};
 pub use setup::Setup;

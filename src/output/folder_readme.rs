@@ -131,6 +131,30 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
           pixel (i, j) is at continuous pixel coordinates (i + 0.5, j + 0.5).\n";
     t += "- Intensities are detector counts, I_max = 2^bpp − 1: 16-bit TIFF and 32-bit float EXR \
           hold the same values.\n";
+    let im = &s.imaging;
+    if im.samples_per_side() > 1 {
+        let n = im.samples_per_side();
+        let _ = writeln!(
+            t,
+            "- Each pixel averages {n} × {n} rays over its area (area sampling), so pixels that \
+             a shadow's edge crosses take partial values."
+        );
+    }
+    if let Some(f) = &im.focal_spot {
+        let _ = writeln!(
+            t,
+            "- The X-ray sources have a {} mm focal spot ({}, sampled by {} × {} sub-sources). \
+             The source position in `truth.json` is the focal spot's **centre**, and a bead's \
+             projected centre is the central projection of its centre from there.",
+            f.size_mm,
+            match f.profile {
+                crate::scenario::SpotProfile::Uniform => "uniform square",
+                crate::scenario::SpotProfile::Gaussian => "Gaussian, size = FWHM",
+            },
+            f.samples,
+            f.samples
+        );
+    }
     t += "- Bead tables in `phantoms/` are in each phantom's own frame (the box's is the box frame): \
           `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.\n\n";
     t += "## Verifying this folder\n\n";

@@ -12,12 +12,13 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::Sampling;
-use super::strip::{STRIP_SAMPLES, add_blocks, strips};
+use super::strip::{STRIP_SAMPLES, strips};
 use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
 use crate::trace::{self, Object};
 
-/// The covered fraction of every pixel of `frame` (W×H, row-major, in [0, 1]).
+/// The covered fraction of every pixel of `frame` (W×H, row-major, in [0, 1]): per pixel
+/// `Σ_k w_k · (covered samples of sub-source k) / s²`, sub-sources in order.
 pub fn coverage(
     frame: &DetectorFrame,
     source_mm: DVec3,
@@ -42,13 +43,21 @@ pub fn coverage(
         .par_iter()
         .zip(chunks.into_par_iter())
         .for_each(|(st, chunk)| {
-            let mut fine = vec![0.0; chunk.len() * s * s];
+            let mut counts = vec![0u32; chunk.len()];
             for &(src, weight) in &sources {
+                // Hits are 0 or 1: each pixel's count of covered samples is exact in integers.
                 let hits = trace::render_binary(&st.frame, src, objects, 1);
-                for (f, &v) in fine.iter_mut().zip(&hits) {
-                    *f = f64::from(v);
+                counts.fill(0);
+                for (b, row) in hits.chunks_exact(w * s).enumerate() {
+                    let counts_row = &mut counts[(b / s) * w..(b / s + 1) * w];
+                    for (c, block) in counts_row.iter_mut().zip(row.chunks_exact(s)) {
+                        *c += block.iter().map(|&v| u32::from(v)).sum::<u32>();
+                    }
                 }
-                add_blocks(&fine, w, s, weight * per_sample, chunk);
+                let k = weight * per_sample;
+                for (o, &c) in chunk.iter_mut().zip(&counts) {
+                    *o += k * f64::from(c);
+                }
             }
         });
     out

@@ -257,6 +257,42 @@ pub struct ResponseOptions {
     /// For `polarity = "radiograph"`: the attenuation ln(S_open/S) shown as I_max. Default 7.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiograph_range: Option<f64>,
+    /// Detector blur (the scintillator's light spread) as a Gaussian point-spread function,
+    /// e.g. `{ sigma_mm = 0.15 }`. Give at most one of `psf` and `mtf`. Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psf: Option<PsfOption>,
+    /// Detector blur given by its modulation transfer function (without the pixel aperture,
+    /// which `pixel_samples` provides): rows `[cycles_per_mm, value]`, frequencies ascending
+    /// from `[0.0, 1.0]`, values in [0, 1]; zero beyond the last row. Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mtf: Option<Vec<[f64; 2]>>,
+    /// Scattered radiation, approximated as the primary image blurred by a broad Gaussian
+    /// times a constant scatter-to-primary ratio: `{ ratio = 0.3, sigma_mm = 40 }`. Default:
+    /// none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scatter: Option<ScatterOption>,
+    /// Electronic (read-out) noise: the SD of a Gaussian added to every raw value, digital
+    /// units. Default 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub electronic_noise_dn: Option<f64>,
+}
+
+/// A Gaussian point-spread function.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PsfOption {
+    /// Its standard deviation on the detector, mm (typ. 0.1–0.2 for a CsI flat panel).
+    pub sigma_mm: f64,
+}
+
+/// The scatter approximation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ScatterOption {
+    /// Scatter-to-primary ratio (≥ 0; typ. 0.1–0.5 for a knee without a grid, less with one).
+    pub ratio: f64,
+    /// Standard deviation of the scatter kernel on the detector, mm (typ. 20–60).
+    pub sigma_mm: f64,
 }
 
 impl ResponseOptions {

@@ -448,6 +448,7 @@ impl Check<'_> {
                 "the attenuation ln(S_open/S) shown white, e.g. 7",
             );
         }
+        self.detector_blur();
         let pp = root().key("protocol");
         if self.written(&pp.key("noise_levels")) {
             self.err(
@@ -476,6 +477,79 @@ impl Check<'_> {
         }
         for (i, ph) in self.s.phantoms.iter().enumerate() {
             self.phantom(root().key("phantoms").index(i), ph);
+        }
+    }
+
+    /// `[imaging.detector]`: psf, mtf, scatter, electronic noise.
+    fn detector_blur(&mut self) {
+        let d = &self.s.imaging.detector;
+        let dp = root().key("imaging").key("detector");
+        if d.psf.is_some() && d.mtf.is_some() {
+            self.err(
+                dp.key("mtf"),
+                "give the detector blur once: psf or mtf, not both",
+                "keep psf = { sigma_mm = … } for a Gaussian, or mtf = [[0.0, 1.0], …] for a measured MTF",
+            );
+        }
+        if let Some(p) = &d.psf {
+            if !(p.sigma_mm.is_finite() && p.sigma_mm > 0.0 && p.sigma_mm <= 10.0) {
+                self.err(
+                    dp.key("psf").key("sigma_mm"),
+                    format!("PSF sigma {} mm is out of range", p.sigma_mm),
+                    "give the Gaussian's SD on the detector in mm, above 0 and at most 10 (CsI flat panels: about 0.1–0.2)",
+                );
+            }
+        }
+        if let Some(rows) = &d.mtf {
+            let mp = dp.key("mtf");
+            let help = "rows [cycles_per_mm, value]: the first [0.0, 1.0], frequencies ascending, values from 0 to 1, e.g. [[0.0, 1.0], [1.0, 0.7], [2.0, 0.35], [3.0, 0.15]]";
+            if rows.len() < 2 {
+                self.err(mp.clone(), format!("the MTF has {} row(s)", rows.len()), help);
+            } else if rows[0] != [0.0, 1.0] {
+                self.err(
+                    mp.index(0),
+                    format!("the MTF starts at [{}, {}]", rows[0][0], rows[0][1]),
+                    help,
+                );
+            }
+            for (k, r) in rows.iter().enumerate() {
+                let bad = !(r[0].is_finite() && r[0] <= 1e3 && (0.0..=1.0).contains(&r[1]))
+                    || (k > 0 && !(r[0] > rows[k - 1][0]));
+                if bad {
+                    self.err(
+                        mp.index(k),
+                        format!("MTF row {k} [{}, {}] is not valid", r[0], r[1]),
+                        help,
+                    );
+                    break;
+                }
+            }
+        }
+        if let Some(sc) = &d.scatter {
+            let sp = dp.key("scatter");
+            if !(sc.ratio.is_finite() && (0.0..=10.0).contains(&sc.ratio)) {
+                self.err(
+                    sp.key("ratio"),
+                    format!("scatter-to-primary ratio {} is out of range", sc.ratio),
+                    "give a ratio from 0 to 10 (a knee without a grid: about 0.2–0.5)",
+                );
+            }
+            if !(sc.sigma_mm.is_finite() && sc.sigma_mm > 0.0 && sc.sigma_mm <= 1000.0) {
+                self.err(
+                    sp.key("sigma_mm"),
+                    format!("scatter kernel sigma {} mm is out of range", sc.sigma_mm),
+                    "give the kernel's SD on the detector in mm, above 0 and at most 1000 (typ. 20–60)",
+                );
+            }
+        }
+        if let Some(e) = d.electronic_noise_dn {
+            if !(e.is_finite() && (0.0..=65535.0).contains(&e)) {
+                self.err(
+                    dp.key("electronic_noise_dn"),
+                    format!("electronic noise {e} DN is out of range"),
+                    "give the read-out noise SD in digital units, from 0 to 65535 (flat panels: a few DN)",
+                );
+            }
         }
     }
 
