@@ -15,9 +15,11 @@
 //! Rows are independent, so [`add_noise`] runs them in parallel and its output is byte-identical
 //! to a sequential loop over [`add_noise_row`] whatever the number of threads.
 
+pub mod normal;
 pub mod poisson;
 pub mod stream;
 
+pub use normal::standard_normal;
 pub use poisson::Poisson;
 pub use stream::NoiseKey;
 

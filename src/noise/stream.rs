@@ -48,13 +48,31 @@ impl NoiseKey {
         exposure_id: &str,
         detector_id: &str,
     ) -> NoiseKey {
-        let label = format!(
+        NoiseKey::of_label(&format!(
             "rsasim/noise/v1/{scenario_seed}/{noise_level_index}/{run_index}/{exposure_id}/{detector_id}"
-        );
-        let digest = Sha256::digest(label.as_bytes());
-        let mut key = [0u8; 32];
-        key.copy_from_slice(&digest);
-        NoiseKey(key)
+        ))
+    }
+
+    /// The key of one image's electronic (read-out) noise, a stream family of its own beside
+    /// the quantum noise of [`NoiseKey::derive`]: SHA-256 of
+    /// `format!("rsasim/electronic/v1/{scenario_seed}/{noise_level_index}/{run_index}/{exposure_id}/{detector_id}")`,
+    /// the fields as in [`NoiseKey::derive`]. Row `j` draws from [`NoiseKey::row_rng`]`(j)` of
+    /// this key, the same ChaCha8 derivation (module documentation).
+    pub fn derive_electronic(
+        scenario_seed: u64,
+        noise_level_index: u32,
+        run_index: u32,
+        exposure_id: &str,
+        detector_id: &str,
+    ) -> NoiseKey {
+        NoiseKey::of_label(&format!(
+            "rsasim/electronic/v1/{scenario_seed}/{noise_level_index}/{run_index}/{exposure_id}/{detector_id}"
+        ))
+    }
+
+    /// SHA-256 of the UTF-8 bytes of `label`.
+    fn of_label(label: &str) -> NoiseKey {
+        NoiseKey(Sha256::digest(label.as_bytes()).into())
     }
 
     /// Wraps raw key bytes (for tests and for tools that replay a recorded key).
@@ -165,6 +183,15 @@ mod tests {
         assert_ne!(key, NoiseKey::derive(42, 1, 7, "ap", "det_a"));
         assert_ne!(key, NoiseKey::derive(42, 2, 7, "lat", "det_a"));
         assert_ne!(key, NoiseKey::derive(42, 2, 7, "ap", "det_b"));
+    }
+
+    #[test]
+    fn electronic_key_is_sha256_of_its_own_label() {
+        let key = NoiseKey::derive_electronic(42, 2, 7, "ap", "det_a");
+        let want: [u8; 32] = Sha256::digest(b"rsasim/electronic/v1/42/2/7/ap/det_a").into();
+        assert_eq!(key.as_bytes(), &want);
+        assert_ne!(key, NoiseKey::derive(42, 2, 7, "ap", "det_a"));
+        assert_ne!(key, NoiseKey::derive_electronic(42, 2, 8, "ap", "det_a"));
     }
 
     const EXPECTED_KEY_HEX: &str =

@@ -1,5 +1,99 @@
 //! From a pixel's noisy signal to its stored digital value: gain, offset, rounding and clipping
 //! (`raw` polarity), or the flat-field corrected log image (`radiograph` polarity).
+//!
+//! [`Digitiser`] holds the per-pixel steps that [`super::render`] and
+//! [`super::render_expected`] share (one copy of the logic): the quantum draw and the stored value.
+
+use rand_core::Rng;
+
+use super::{DetectorModel, LAMBDA_MAX, Polarity, Response};
+use crate::noise::Poisson;
+
+/// The per-pixel steps of a detector, prepared once per image.
+#[derive(Debug, Clone)]
+pub(crate) struct Digitiser {
+    integrating: bool,
+    offset: f64,
+    gain: f64,
+    i_max: u16,
+    /// The radiograph table (`None` for raw values).
+    table: Option<RadiographTable>,
+}
+
+impl Digitiser {
+    /// The steps of `det`.
+    pub(crate) fn new(det: &DetectorModel) -> Digitiser {
+        let table = match det.polarity {
+            Polarity::Radiograph { range } => {
+                Some(RadiographTable::new(range, libm::exp(range), det.i_max))
+            }
+            Polarity::Raw => None,
+        };
+        Digitiser {
+            integrating: det.response == Response::EnergyIntegrating,
+            offset: det.offset,
+            gain: det.gain,
+            i_max: det.i_max,
+            table,
+        }
+    }
+
+    /// Whether the signal is energy (so [`Digitiser::detect`] needs `E`).
+    pub(crate) fn integrating(&self) -> bool {
+        self.integrating
+    }
+
+    /// The noisy signal `S` of a pixel of expected quanta `q` and energy `e` (keV, read only
+    /// when integrating): `n ~ Poisson(q)` drawn from `rng` (mean clamped to `[0, LAMBDA_MAX]`,
+    /// NaN as 0), then `S = n` (photon counting) or `n · e/q` (energy integrating, 0 when
+    /// `q ≤ 0`).
+    #[inline(always)]
+    pub(crate) fn detect(&self, q: f64, e: f64, rng: &mut impl Rng) -> f64 {
+        let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
+        let n = Poisson::sample_with_mean(lambda, rng) as f64;
+        if !self.integrating {
+            n
+        } else if q > 0.0 {
+            n * (e / q)
+        } else {
+            0.0
+        }
+    }
+
+    /// The stored value of a pixel of signal `signal` and expected open-field signal `open`,
+    /// and whether its raw value `offset + gain · S` was clipped at the top.
+    #[inline(always)]
+    pub(crate) fn store(&self, signal: f64, open: f64) -> (u16, bool) {
+        self.store_raw(signal, self.offset + self.gain * signal, open)
+    }
+
+    /// [`Digitiser::store`] with `noise_dn` DN of electronic noise: the raw value becomes
+    /// `offset + gain · S + noise_dn`, the radiograph's signal `S + noise_dn / gain`.
+    #[inline(always)]
+    pub(crate) fn store_with_read_noise(
+        &self,
+        signal: f64,
+        open: f64,
+        noise_dn: f64,
+    ) -> (u16, bool) {
+        let raw = self.offset + self.gain * signal + noise_dn;
+        let signal = match self.table {
+            Some(_) => signal + noise_dn / self.gain,
+            None => signal,
+        };
+        self.store_raw(signal, raw, open)
+    }
+
+    #[inline(always)]
+    fn store_raw(&self, signal: f64, raw: f64, open: f64) -> (u16, bool) {
+        let saturated = is_saturated(raw, self.i_max);
+        let value = match &self.table {
+            None => quantise(raw, self.i_max),
+            Some(t) => t.value(signal, open),
+        };
+        (value, saturated)
+    }
+}
 
 /// `v` rounded half up and clipped to `0..=i_max`; NaN gives 0.
 #[inline(always)]

@@ -37,7 +37,7 @@
 //!
 //! Row `j` (row 0 is the first stored row) draws from `key.row_rng(j)` (the stream derivation of
 //! [`crate::noise::stream`]); its pixels draw left to right, one Poisson sample each, with the
-//! pixel's own mean λ = Q ([`Poisson::sample_with_mean`], the same values as
+//! pixel's own mean λ = Q ([`crate::noise::Poisson::sample_with_mean`], the same values as
 //! `Poisson::new(Q).sample`). A sample consumes a variable number of `u64`s (none for λ = 0), so
 //! unlike binary mode a pixel's noise depends on the means of the pixels before it in its row.
 //! Means outside `[0, LAMBDA_MAX]` (only from invalid inputs; see [`check_inputs`]) are replaced by
@@ -60,16 +60,22 @@ mod digitise;
 pub mod exp;
 mod expected;
 mod fluence;
+mod image;
 mod layer;
+mod pipeline;
 #[cfg(test)]
 mod tests;
+mod unsharp;
 
 pub use fluence::{PointSourceFluence, point_source_fluence};
+pub use image::{Expected, expected, open_signal_per_fluence};
 pub use layer::{Layer, material_row, net_material_row};
+pub use pipeline::render_expected;
+pub use unsharp::Unsharpness;
 
 use rayon::prelude::*;
 
-use crate::noise::{NoiseKey, Poisson};
+use crate::noise::NoiseKey;
 use expected::{Bins, RowScratch, row_expected};
 
 /// The attenuation (natural log of open-field over object signal) shown white in a radiograph
@@ -456,16 +462,8 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             expected_open_max: det.offset,
         };
     }
-    let integrating = det.response == Response::EnergyIntegrating;
-    let table = match det.polarity {
-        Polarity::Radiograph { range } => Some(digitise::RadiographTable::new(
-            range,
-            libm::exp(range),
-            det.i_max,
-        )),
-        Polarity::Raw => None,
-    };
-    let i_max = det.i_max;
+    let digitiser = digitise::Digitiser::new(det);
+    let integrating = digitiser.integrating();
     let (saturated, f_max) = pixels
         .par_chunks_mut(w)
         .enumerate()
@@ -490,24 +488,10 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             let mut rng = key.row_rng(j as u32);
             let mut saturated = 0usize;
             for i in 0..w {
-                let q = s.quanta[i];
-                let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
-                let n = Poisson::sample_with_mean(lambda, &mut rng) as f64;
-                let signal = if !integrating {
-                    n
-                } else if q > 0.0 {
-                    n * (s.energy_kev[i] / q)
-                } else {
-                    0.0
-                };
-                let raw = det.offset + det.gain * signal;
-                saturated += usize::from(digitise::is_saturated(raw, i_max));
-                row[i] = match det.polarity {
-                    Polarity::Raw => digitise::quantise(raw, i_max),
-                    Polarity::Radiograph { .. } => table
-                        .as_ref()
-                        .map_or(0, |t| t.value(signal, fluence[i] * open)),
-                };
+                let signal = digitiser.detect(s.quanta[i], s.energy_kev[i], &mut rng);
+                let (value, clipped) = digitiser.store(signal, fluence[i] * open);
+                saturated += usize::from(clipped);
+                row[i] = value;
             }
             (saturated, f_max)
         })

@@ -2,7 +2,7 @@
 //! draw order, thread independence, polarity, saturation and invalid inputs.
 
 use super::*;
-use crate::noise::NoiseKey;
+use crate::noise::{NoiseKey, Poisson};
 
 fn key() -> NoiseKey {
     NoiseKey::derive(11, 0, 3, "ap", "det_a")

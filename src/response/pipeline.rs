@@ -1,0 +1,340 @@
+//! From an expected image to stored values with the detector's unsharpness and extra noise
+//! ([`render_expected`]), in the order of the physics:
+//!
+//! 1. scatter (optional) added to the expected quanta and energy;
+//! 2. quantum noise, exactly as [`super::render`] (same streams, same draw order);
+//! 3. the detector PSF (optional) on the noisy signal `S` (and on the flat field `S_open` of a
+//!    radiograph), which correlates the noise;
+//! 4. electronic noise (optional), Gaussian, on its own streams;
+//! 5. digitisation as in [`super::render`]; `saturated` counts the clipped raw values after all
+//!    of this.
+//!
+//! With every option off ([`Unsharpness::default`]) the output is [`super::render`]'s, bit for
+//! bit: both call the same per-pixel code ([`super::digitise::Digitiser`]).
+
+use rayon::prelude::*;
+
+use super::digitise::Digitiser;
+use super::{DetectorModel, Expected, Rendered, Unsharpness};
+use crate::noise::{NoiseKey, standard_normal};
+
+/// Renders an expected image: scatter, quantum noise, detector PSF, electronic noise and
+/// digitisation (module documentation), each option as `unsharp` says.
+///
+/// Quantum noise: row `j` draws from `key.row_rng(j)`, one Poisson sample per pixel left to
+/// right with mean `Q` (after scatter), as [`super::render`]. Electronic noise: row `j` draws
+/// from `electronic_key.row_rng(j)` (see [`NoiseKey::derive_electronic`]), one
+/// [`standard_normal`] per pixel left to right (two `u64`s each), times
+/// `unsharp.electronic_noise_dn`; none is drawn when it is 0. Rows run in parallel; the output is
+/// the same on any number of threads.
+///
+/// `expected_open_max` is `offset + gain · max_p S_open` (the open field before any PSF).
+/// Never panics on values: a NaN, negative or infinite `electronic_noise_dn` counts as 0 (see
+/// [`Unsharpness::check`]); expected values are sanitised as in [`super::render`].
+///
+/// # Panics
+/// When the three images of `expected` are not `width × height` ([`Expected::is_consistent`])
+/// or it has more than 2³² rows.
+pub fn render_expected(
+    det: &DetectorModel,
+    expected: &Expected,
+    unsharp: &Unsharpness,
+    key: &NoiseKey,
+    electronic_key: &NoiseKey,
+) -> Rendered {
+    assert!(
+        expected.is_consistent(),
+        "the expected image is not width × height in all three values"
+    );
+    assert!(
+        expected.height as u64 <= 1u64 << 32,
+        "more than 2³² rows (noise streams are numbered by u32)"
+    );
+    let w = expected.width;
+    let mut pixels = vec![0u16; expected.quanta.len()];
+    if w == 0 {
+        return Rendered {
+            pixels,
+            saturated: 0,
+            expected_open_max: det.offset,
+        };
+    }
+    let open_max = expected.open_signal.iter().fold(0.0f64, |m, &v| m.max(v));
+    let digitiser = Digitiser::new(det);
+    let read_noise = unsharp.electronic_sd_dn();
+    let saturated = pixels
+        .par_chunks_mut(w)
+        .enumerate()
+        .map(|(j, row)| {
+            let k = j * w..(j + 1) * w;
+            let (q, e, open) = (
+                &expected.quanta[k.clone()],
+                &expected.energy_kev[k.clone()],
+                &expected.open_signal[k],
+            );
+            let mut rng = key.row_rng(j as u32);
+            let mut saturated = 0usize;
+            match read_noise {
+                None => {
+                    for i in 0..w {
+                        let signal = digitiser.detect(q[i], e[i], &mut rng);
+                        let (value, clipped) = digitiser.store(signal, open[i]);
+                        saturated += usize::from(clipped);
+                        row[i] = value;
+                    }
+                }
+                Some(sd) => {
+                    let mut erng = electronic_key.row_rng(j as u32);
+                    for i in 0..w {
+                        let signal = digitiser.detect(q[i], e[i], &mut rng);
+                        let noise = sd * standard_normal(&mut erng);
+                        let (value, clipped) =
+                            digitiser.store_with_read_noise(signal, open[i], noise);
+                        saturated += usize::from(clipped);
+                        row[i] = value;
+                    }
+                }
+            }
+            saturated
+        })
+        .sum();
+    Rendered {
+        pixels,
+        saturated,
+        expected_open_max: det.offset + det.gain * open_max,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::response::{
+        Beam, Layer, PointSourceFluence, Polarity, Response, Scene, expected, render,
+    };
+
+    fn key() -> NoiseKey {
+        NoiseKey::derive(5, 1, 2, "ap", "det_a")
+    }
+
+    fn ekey() -> NoiseKey {
+        NoiseKey::derive_electronic(5, 1, 2, "ap", "det_a")
+    }
+
+    fn detector(response: Response, polarity: Polarity, gain: f64, offset: f64) -> DetectorModel {
+        DetectorModel {
+            response,
+            efficiency: vec![0.9, 0.7, 0.5],
+            gain,
+            offset,
+            i_max: u16::MAX,
+            polarity,
+        }
+    }
+
+    /// A 53 × 41 scene: a tissue block with a nested metal rectangle taken from it and a bead
+    /// layer, under a point source (fluence by rows), three bins.
+    fn with_scene<T>(f: impl FnOnce(&Beam, &Scene) -> T) -> T {
+        let (w, h) = (53usize, 41usize);
+        let frame = crate::geometry::DetectorFrame {
+            pose: crate::geometry::Pose::from_position_euler_deg(
+                [1.0, -2.0, -300.0],
+                [3.0, -5.0, 20.0],
+            ),
+            pixels: [w as u32, h as u32],
+            pixel_pitch_mm: [0.8, 0.6],
+        };
+        let fluence = PointSourceFluence::new(&frame, glam::DVec3::new(10.0, 5.0, 700.0));
+        let outer: Vec<f64> = (0..40 * 30).map(|p| 20.0 + (p % 13) as f64 * 0.7).collect();
+        let inner: Vec<f64> = (0..8 * 6).map(|p| 2.0 + (p % 5) as f64 * 0.4).collect();
+        let bead: Vec<f64> = (0..3 * 3).map(|p| [0.3, 0.9, 0.3][p % 3]).collect();
+        let layers = [
+            Layer {
+                material: 0,
+                sign: 1.0,
+                columns: 5..45,
+                rows: 4..34,
+                length_mm: &outer,
+            },
+            Layer {
+                material: 0,
+                sign: -1.0,
+                columns: 20..28,
+                rows: 10..16,
+                length_mm: &inner,
+            },
+            Layer {
+                material: 1,
+                sign: 1.0,
+                columns: 20..28,
+                rows: 10..16,
+                length_mm: &inner,
+            },
+            Layer {
+                material: 2,
+                sign: 1.0,
+                columns: 40..43,
+                rows: 30..33,
+                length_mm: &bead,
+            },
+        ];
+        let mu = vec![
+            vec![0.05, 0.03, 0.025],
+            vec![2.5, 1.1, 0.6],
+            vec![9.0, 4.0, 2.0],
+        ];
+        let beam = Beam {
+            energies_kev: vec![40.0, 60.0, 80.0],
+            photons_per_pixel: vec![300.0, 900.0, 400.0],
+        };
+        let scene = Scene {
+            width: w,
+            height: h,
+            mu_per_mm: &mu,
+            layers: &layers,
+            fluence: crate::response::Fluence::PointSource(&fluence),
+        };
+        f(&beam, &scene)
+    }
+
+    fn polarities() -> [Polarity; 2] {
+        [Polarity::Raw, Polarity::Radiograph { range: 6.0 }]
+    }
+
+    #[test]
+    fn with_every_option_off_it_is_render_bit_for_bit() {
+        with_scene(|beam, scene| {
+            for polarity in polarities() {
+                for response in [Response::EnergyIntegrating, Response::PhotonCounting] {
+                    let gain = DetectorModel::auto_gain(
+                        &response,
+                        beam,
+                        &[0.9, 0.7, 0.5],
+                        50.0,
+                        0.99,
+                        4095,
+                    );
+                    let mut det = detector(response, polarity, gain, 50.0);
+                    det.i_max = 4095;
+                    let e = expected(beam, &det, scene);
+                    let want = render(beam, &det, scene, &key());
+                    let got = render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
+                    assert_eq!(got, want, "{polarity:?} {response:?}");
+                    assert_eq!(
+                        got.expected_open_max.to_bits(),
+                        want.expected_open_max.to_bits()
+                    );
+                    // The air saturates somewhere in raw values: the count is compared too.
+                    assert!(want.saturated > 0 || polarity != Polarity::Raw);
+                    // The expected quanta are expected_quanta's.
+                    let q = crate::response::expected_quanta(beam, &det, scene);
+                    assert!(
+                        q.iter()
+                            .zip(&e.quanta)
+                            .all(|(a, b)| a.to_bits() == b.to_bits())
+                    );
+                    let s_ref = open_signal_per_fluence_of(&det, beam);
+                    assert!(e.open_signal.iter().all(|&o| o <= s_ref && o > 0.5 * s_ref));
+                }
+            }
+        });
+    }
+
+    fn open_signal_per_fluence_of(det: &DetectorModel, beam: &Beam) -> f64 {
+        crate::response::open_signal_per_fluence(det, beam)
+    }
+
+    #[test]
+    fn electronic_noise_has_its_mean_and_sd() {
+        // No photons: the raw value is offset + noise (sd 40 DN), rounded (+1/12 variance).
+        let (w, h) = (400, 250);
+        let n = w * h;
+        let e = Expected {
+            width: w,
+            height: h,
+            quanta: vec![0.0; n],
+            energy_kev: vec![0.0; n],
+            open_signal: vec![1.0; n],
+        };
+        let det = detector(Response::EnergyIntegrating, Polarity::Raw, 1.0, 1000.0);
+        let unsharp = Unsharpness {
+            electronic_noise_dn: 40.0,
+        };
+        let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
+        let v: Vec<f64> = r.pixels.iter().map(|&p| f64::from(p)).collect();
+        let nf = n as f64;
+        let mean = v.iter().sum::<f64>() / nf;
+        let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (nf - 1.0)).sqrt();
+        let want_sd = (1600.0f64 + 1.0 / 12.0).sqrt();
+        assert!(
+            (mean - 1000.0).abs() < 4.0 * want_sd / nf.sqrt(),
+            "mean {mean}"
+        );
+        assert!(
+            (sd - want_sd).abs() < 4.0 * want_sd / (2.0 * nf).sqrt(),
+            "sd {sd}"
+        );
+        // Row j, pixel i is the documented sample: offset + sd · z_i of stream j.
+        let mut rng = ekey().row_rng(7);
+        for i in 0..w {
+            let z = standard_normal(&mut rng);
+            let raw = 1000.0 + 1.0 * 0.0 + 40.0 * z;
+            assert_eq!(
+                r.pixels[7 * w + i],
+                super::super::digitise::quantise(raw, u16::MAX)
+            );
+        }
+        // Off when 0: the plain render.
+        let off = render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
+        assert!(off.pixels.iter().all(|&p| p == 1000));
+    }
+
+    #[test]
+    fn electronic_noise_in_a_radiograph_is_noise_over_gain_on_the_signal() {
+        // Photon counting, Q = 0 (S = 0 would be white): with noise, S = e/gain; negative e
+        // stays white, positive e gives ln(S_open · gain / e) / range · i_max.
+        let (w, h) = (64, 8);
+        let n = w * h;
+        let e = Expected {
+            width: w,
+            height: h,
+            quanta: vec![0.0; n],
+            energy_kev: vec![0.0; n],
+            open_signal: vec![5000.0; n],
+        };
+        let det = detector(
+            Response::PhotonCounting,
+            Polarity::Radiograph { range: 7.0 },
+            0.5,
+            0.0,
+        );
+        let unsharp = Unsharpness {
+            electronic_noise_dn: 3.0,
+        };
+        let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
+        let table = super::super::digitise::RadiographTable::new(7.0, libm::exp(7.0), u16::MAX);
+        for j in 0..h {
+            let mut rng = ekey().row_rng(j as u32);
+            for i in 0..w {
+                let noise = 3.0 * standard_normal(&mut rng);
+                let want = table.value(noise / 0.5, 5000.0);
+                assert_eq!(r.pixels[j * w + i], want, "({i}, {j})");
+            }
+        }
+        assert!(r.pixels.iter().any(|&p| p < u16::MAX) && r.pixels.contains(&u16::MAX));
+    }
+
+    #[test]
+    fn check_names_the_field() {
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let u = Unsharpness {
+                electronic_noise_dn: bad,
+            };
+            let e = u.check().unwrap_err();
+            assert!(
+                e.contains("electronic_noise_dn") && e.contains("≥ 0"),
+                "{e}"
+            );
+        }
+        assert!(Unsharpness::default().check().is_ok());
+    }
+}
