@@ -39,6 +39,11 @@ from peers import gvxr_geometry, gvxr_time, machine, median_ms, pixel_rays, read
 SCENES = ("mono", "poly", "realistic_mono")
 # Scenes given to gVXR as constant linear attenuation coefficients net of nesting.
 NET_MU = ("realistic_mono",)
+# Scenes whose image gVXR also renders from a finite focal spot (issue 12's speed peer; rsasim's
+# counterpart is the scene `realistic_unsharp`): a 1.2 mm cube sampled by 3³ point sources
+# (gVXR needs an odd count per axis; asked for 2 it warns and uses 3).
+FOCAL_SPOT = ("realistic_mono",)
+FOCAL_SPOT_SUBDIVISIONS = 3
 
 
 def load(d):
@@ -157,6 +162,17 @@ def cmd_gvxr(args):
         image = np.zeros((h, w), dtype=np.single)
         for noise in (False, True):
             gvxr_time(gvxr, image, args.repeats, noise, res)
+        if name in FOCAL_SPOT:
+            # Issue 12's peer: the same image from a 1.2 mm focal spot, a cube gVXR samples by
+            # FOCAL_SPOT_SUBDIVISIONS³ point sources, no noise; then back to the point source.
+            spot = {}
+            gvxr.setFocalSpot(*sc["source_mm"], 1.2, "mm", FOCAL_SPOT_SUBDIVISIONS)
+            gvxr_time(gvxr, image, args.repeats, False, spot)
+            res["focal_spot_sources"] = FOCAL_SPOT_SUBDIVISIONS**3
+            res["focal_spot_ms"] = spot["xray_clean_ms"]
+            res["focal_spot_runs_ms"] = spot["xray_clean_runs_ms"]
+            gvxr.usePointSource()
+            gvxr.setSourcePosition(*sc["source_mm"], "mm")
         gvxr.disablePoissonNoise()
         gvxr.computeXRayImage(image)
         clean = image.copy()
@@ -169,6 +185,8 @@ def cmd_gvxr(args):
         trans = (clean / np.where(open_field > 0, open_field, np.nan)).astype(np.float32)
         trans.tofile(Path(args.dir) / f"{name}.gvxr_T.f32")
         out["scenes"][name] = res
+        if "focal_spot_ms" in res:
+            print(f"gvxr {name}: focal spot of {res['focal_spot_sources']} sources {res['focal_spot_ms']:.1f} ms")
         print(
             f"gvxr {name}: computeXRayImage {res['xray_clean_ms']:.1f} ms, with Poisson noise "
             f"{res['xray_noise_ms']:.1f} ms ({res['bins']} bins, {len(meshes)} meshes, {res['triangles']} triangles); "
@@ -443,6 +461,13 @@ def cmd_summary(args):
             rows.append((f"{what}, {spec}", sc[key]["render_ms"], (key, "xray_clean_ms")))
             noisy = sc[key].get("render_1000_photons_ms", sc[key]["render_ms"])
             rows.append((f"{what}, {spec}, with noise (1000 photons/px)", noisy, (key, "xray_noise_ms")))
+    if "realistic_unsharp" in sc:
+        rows.append((
+            "femur + bone + soft tissue + beads, 60 keV, 2×2 rays per pixel, 3×3-sampled 1.2 mm focal spot, "
+            "detector PSF, noise (10⁴ photons/px); gVXR: its 3³-sampled 1.2 mm focal spot, no noise",
+            sc["realistic_unsharp"]["render_ms"],
+            ("realistic_mono", "focal_spot_ms"),
+        ))
     if "realistic" in sc:
         rows.append((f"biplanar_realistic as shipped (CsI, 10 mAs), {sc['realistic']['bins']} bins, with noise", sc["realistic"]["render_ms"], None))
     for label, ours, gkey in rows:

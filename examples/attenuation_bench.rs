@@ -15,7 +15,10 @@
 //! - `realistic_poly`: `bench/attenuation/realistic_poly.toml`, the same with biplanar_realistic's
 //!   85 kVp spectrum in 40 bins;
 //! - `realistic`: `scenarios/biplanar_realistic.toml` itself (its energy-integrating CsI
-//!   detector and its exposure; timing only, not exported).
+//!   detector and its exposure; timing only, not exported);
+//! - `realistic_unsharp`: `bench/attenuation/realistic_unsharp.toml`, issue 12's speed scene:
+//!   `realistic_mono` with 2×2 rays per pixel, a 1.2 mm focal spot of 3×3 sub-sources and a
+//!   detector PSF (timing only, not exported).
 //!
 //! DIR receives `attenuation.json` (timings; per exported scene the source, the detector frame as
 //! in `examples/bench_scene.rs`, the energies, photons and detector efficiency per bin, the
@@ -364,6 +367,11 @@ fn main() {
             true,
         ),
         ("realistic", "scenarios/biplanar_realistic.toml", false),
+        (
+            "realistic_unsharp",
+            "bench/attenuation/realistic_unsharp.toml",
+            false,
+        ),
     ] {
         if wanted(name) {
             scenes.insert(name.into(), scene(root, &dir, name, rel, repeats, export));

@@ -8,7 +8,7 @@ use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::geometry::DetectorFrame;
 use crate::material::{self, Material};
 use crate::phantom::{PhantomModel, confine};
-use crate::response::{Beam, DetectorModel, Polarity, Response};
+use crate::response::{Beam, DetectorModel, Polarity, Response, Unsharpness};
 use crate::scenario::{LoadedScenario, PolarityOption, ResponseKind, Scenario};
 use crate::spectrum::Spectrum;
 
@@ -20,6 +20,19 @@ pub const DEFAULT_RADIOGRAPH_RANGE: f64 = 7.0;
 
 /// Default `white_level`: the open field reads this fraction of I_max.
 pub const DEFAULT_WHITE_LEVEL: f64 = 0.8;
+
+/// The detector's unsharpness and extra noise, as plain numbers from the scenario.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DetectorBlur {
+    /// A Gaussian PSF's SD, mm.
+    pub psf_sigma_mm: Option<f64>,
+    /// An MTF table: rows (cycles per mm, value).
+    pub mtf: Option<Vec<[f64; 2]>>,
+    /// Scatter: (scatter-to-primary ratio, kernel SD in mm).
+    pub scatter: Option<(f64, f64)>,
+    /// Electronic noise SD, DN.
+    pub electronic_noise_dn: f64,
+}
 
 /// Everything attenuation mode needs besides the geometry of a run.
 #[derive(Debug, Clone)]
@@ -53,6 +66,9 @@ pub struct Setup {
     pub mean_energy_kev: f64,
     /// Material names by index (for messages and EXR layers).
     pub names: Vec<String>,
+    /// The detector's blur, scatter and electronic noise as the scenario gives them
+    /// (`[imaging.detector]` psf, mtf, scatter, electronic_noise_dn).
+    pub blur: DetectorBlur,
     /// The bytes of `spectrum_file` as read, for the output's `phantoms/` (so the output's own
     /// `scenario.toml` stands alone).
     pub spectrum_file_bytes: Option<Vec<u8>>,
@@ -153,8 +169,21 @@ impl Setup {
                 },
             },
             names,
+            blur: DetectorBlur {
+                psf_sigma_mm: d.psf.as_ref().map(|p| p.sigma_mm),
+                mtf: d.mtf.clone(),
+                scatter: d.scatter.as_ref().map(|sc| (sc.ratio, sc.sigma_mm)),
+                electronic_noise_dn: d.electronic_noise_dn.unwrap_or(0.0),
+            },
             spectrum_file_bytes,
         })
+    }
+
+    /// What the detector adds beyond quantum noise on `frame` (its pitch sets the kernels).
+    pub fn unsharpness(&self, _frame: &DetectorFrame) -> Unsharpness {
+        Unsharpness {
+            electronic_noise_dn: self.blur.electronic_noise_dn,
+        }
     }
 
     /// Index of a material in use.
