@@ -56,6 +56,7 @@
 //! bin loop over blocks of pixels, with AVX2 intrinsics where the CPU has them (bit for bit the
 //! scalar values; see `expected`).
 
+mod convolve;
 mod digitise;
 pub mod exp;
 mod expected;
@@ -63,6 +64,8 @@ mod fluence;
 mod image;
 mod layer;
 mod pipeline;
+pub mod psf;
+pub mod scatter;
 #[cfg(test)]
 mod tests;
 mod unsharp;
@@ -71,6 +74,8 @@ pub use fluence::{PointSourceFluence, point_source_fluence};
 pub use image::{Expected, expected, open_signal_per_fluence};
 pub use layer::{Layer, material_row, net_material_row};
 pub use pipeline::render_expected;
+pub use psf::{Psf, PsfShape};
+pub use scatter::Scatter;
 pub use unsharp::Unsharpness;
 
 use rayon::prelude::*;

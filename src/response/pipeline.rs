@@ -12,10 +12,13 @@
 //! With every option off ([`Unsharpness::default`]) the output is [`super::render`]'s, bit for
 //! bit: both call the same per-pixel code ([`super::digitise::Digitiser`]).
 
+use std::borrow::Cow;
+
 use rayon::prelude::*;
 
+use super::convolve::convolve;
 use super::digitise::Digitiser;
-use super::{DetectorModel, Expected, Rendered, Unsharpness};
+use super::{DetectorModel, Expected, Polarity, Rendered, Unsharpness};
 use crate::noise::{NoiseKey, standard_normal};
 
 /// Renders an expected image: scatter, quantum noise, detector PSF, electronic noise and
@@ -61,48 +64,126 @@ pub fn render_expected(
     }
     let open_max = expected.open_signal.iter().fold(0.0f64, |m, &v| m.max(v));
     let digitiser = Digitiser::new(det);
-    let read_noise = unsharp.electronic_sd_dn();
-    let saturated = pixels
-        .par_chunks_mut(w)
-        .enumerate()
-        .map(|(j, row)| {
-            let k = j * w..(j + 1) * w;
-            let (q, e, open) = (
-                &expected.quanta[k.clone()],
-                &expected.energy_kev[k.clone()],
-                &expected.open_signal[k],
-            );
-            let mut rng = key.row_rng(j as u32);
-            let mut saturated = 0usize;
-            match read_noise {
-                None => {
-                    for i in 0..w {
-                        let signal = digitiser.detect(q[i], e[i], &mut rng);
-                        let (value, clipped) = digitiser.store(signal, open[i]);
-                        saturated += usize::from(clipped);
-                        row[i] = value;
-                    }
+    let h = expected.height;
+    // 1. Scatter on the expected values (E only where the signal reads it).
+    let (quanta, energy_kev) = match &unsharp.scatter {
+        Some(s) => (
+            Cow::Owned(s.add_to(&expected.quanta, w, h)),
+            if digitiser.integrating() {
+                Cow::Owned(s.add_to(&expected.energy_kev, w, h))
+            } else {
+                Cow::Borrowed(&expected.energy_kev[..])
+            },
+        ),
+        None => (
+            Cow::Borrowed(&expected.quanta[..]),
+            Cow::Borrowed(&expected.energy_kev[..]),
+        ),
+    };
+    let saturated = match &unsharp.psf {
+        // 2, 4, 5 in one pass per row.
+        None => pixels
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(j, row)| {
+                let k = j * w..(j + 1) * w;
+                let (q, e) = (&quanta[k.clone()], &energy_kev[k.clone()]);
+                let mut rng = key.row_rng(j as u32);
+                let signal = |i: usize| digitiser.detect(q[i], e[i], &mut rng);
+                store_row(
+                    &digitiser,
+                    unsharp,
+                    electronic_key,
+                    j,
+                    signal,
+                    &expected.open_signal[k],
+                    row,
+                )
+            })
+            .sum(),
+        Some(psf) => {
+            // 2. Quantum noise into a signal image.
+            let mut signal = vec![0.0; w * h];
+            signal.par_chunks_mut(w).enumerate().for_each(|(j, s)| {
+                let k = j * w..(j + 1) * w;
+                let (q, e) = (&quanta[k.clone()], &energy_kev[k]);
+                let mut rng = key.row_rng(j as u32);
+                for (i, s) in s.iter_mut().enumerate() {
+                    *s = digitiser.detect(q[i], e[i], &mut rng);
                 }
-                Some(sd) => {
-                    let mut erng = electronic_key.row_rng(j as u32);
-                    for i in 0..w {
-                        let signal = digitiser.detect(q[i], e[i], &mut rng);
-                        let noise = sd * standard_normal(&mut erng);
-                        let (value, clipped) =
-                            digitiser.store_with_read_noise(signal, open[i], noise);
-                        saturated += usize::from(clipped);
-                        row[i] = value;
-                    }
-                }
-            }
-            saturated
-        })
-        .sum();
+            });
+            // 3. The PSF on the signal, and on the flat field of a radiograph.
+            let signal = convolve(&signal, w, h, psf.kernel_x(), psf.kernel_y());
+            let open = match det.polarity {
+                Polarity::Radiograph { .. } => Cow::Owned(convolve(
+                    &expected.open_signal,
+                    w,
+                    h,
+                    psf.kernel_x(),
+                    psf.kernel_y(),
+                )),
+                Polarity::Raw => Cow::Borrowed(&expected.open_signal[..]),
+            };
+            // 4, 5.
+            pixels
+                .par_chunks_mut(w)
+                .enumerate()
+                .map(|(j, row)| {
+                    let k = j * w..(j + 1) * w;
+                    let s = &signal[k.clone()];
+                    store_row(
+                        &digitiser,
+                        unsharp,
+                        electronic_key,
+                        j,
+                        |i| s[i],
+                        &open[k],
+                        row,
+                    )
+                })
+                .sum()
+        }
+    };
     Rendered {
         pixels,
         saturated,
         expected_open_max: det.offset + det.gain * open_max,
     }
+}
+
+/// Electronic noise (when `unsharp` has some) and digitisation of row `j`: pixel `i` has the
+/// signal `signal(i)` (called once per pixel, left to right) and the open field `open[i]`.
+/// Returns the pixels clipped at the top.
+fn store_row(
+    digitiser: &Digitiser,
+    unsharp: &Unsharpness,
+    electronic_key: &NoiseKey,
+    j: usize,
+    mut signal: impl FnMut(usize) -> f64,
+    open: &[f64],
+    row: &mut [u16],
+) -> usize {
+    let mut saturated = 0usize;
+    match unsharp.electronic_sd_dn() {
+        None => {
+            for (i, px) in row.iter_mut().enumerate() {
+                let (value, clipped) = digitiser.store(signal(i), open[i]);
+                saturated += usize::from(clipped);
+                *px = value;
+            }
+        }
+        Some(sd) => {
+            let mut rng = electronic_key.row_rng(j as u32);
+            for (i, px) in row.iter_mut().enumerate() {
+                let s = signal(i);
+                let noise = sd * standard_normal(&mut rng);
+                let (value, clipped) = digitiser.store_with_read_noise(s, open[i], noise);
+                saturated += usize::from(clipped);
+                *px = value;
+            }
+        }
+    }
+    saturated
 }
 
 #[cfg(test)]
@@ -258,6 +339,7 @@ mod tests {
         let det = detector(Response::EnergyIntegrating, Polarity::Raw, 1.0, 1000.0);
         let unsharp = Unsharpness {
             electronic_noise_dn: 40.0,
+            ..Default::default()
         };
         let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
         let v: Vec<f64> = r.pixels.iter().map(|&p| f64::from(p)).collect();
@@ -309,6 +391,7 @@ mod tests {
         );
         let unsharp = Unsharpness {
             electronic_noise_dn: 3.0,
+            ..Default::default()
         };
         let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
         let table = super::super::digitise::RadiographTable::new(7.0, libm::exp(7.0), u16::MAX);
@@ -328,6 +411,7 @@ mod tests {
         for bad in [-1.0, f64::NAN, f64::INFINITY] {
             let u = Unsharpness {
                 electronic_noise_dn: bad,
+                ..Default::default()
             };
             let e = u.check().unwrap_err();
             assert!(

@@ -1,10 +1,19 @@
 //! The options of [`super::render_expected`]: the detector's unsharpness and extra noise, all
 //! off by default.
 
+use super::{Psf, Scatter};
+
 /// What [`super::render_expected`] adds to the quantum noise of an expected image. The default
 /// adds nothing (the output is then [`super::render`]'s, bit for bit).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Unsharpness {
+    /// Scatter added to the expected image before the quantum noise (an approximation: one
+    /// scatter-to-primary ratio and one broad kernel for the whole image; see [`Scatter`]).
+    pub scatter: Option<Scatter>,
+    /// The detector's point-spread function (scintillator light spread), applied to the noisy
+    /// signal after the quantum noise, so it correlates the noise; also to the flat field of a
+    /// radiograph. See [`Psf`].
+    pub psf: Option<Psf>,
     /// SD of the additive Gaussian electronic (read-out) noise, in DN (≥ 0, finite; 0 = none).
     /// Added to `offset + gain · S` before rounding and clipping; in a radiograph the signal
     /// becomes `S + noise/gain`.

@@ -1,0 +1,243 @@
+//! Scatter as a broad blur of the primary image (an approximation; see [`Scatter`]).
+//!
+//! `K ∗ x` is computed per axis as [`SCATTER_PASSES`] passes of a running box sum, a cascade
+//! whose kernel is a piecewise cubic close to a Gaussian: box widths are odd, `w_l` or
+//! `w_l + 2`, chosen as in Kovesi's "fast almost-Gaussian filtering" (2010) so that the summed
+//! variance `Σ (w² − 1)/12` is the closest such sum to `σ²/p²`. Each line is padded with zeros
+//! by the sum of the box radii on both sides before the passes, so the result inside the image
+//! is exactly the cascade's full kernel truncated at the border; dividing by the same cascade of
+//! the image's indicator (1 inside, 0 outside) renormalises the truncated kernel, so a uniform
+//! image comes out unchanged (within a few ulp). The running sums are compensated (Neumaier
+//! two-sum: a sum and its rounding error), so they do not drift along a line. Rows first, then
+//! columns; columns run as vectors across a strip of columns, and every value is the same
+//! sequence of IEEE operations on any number of threads. The cost does not depend on σ.
+
+use rayon::prelude::*;
+
+use super::psf::check_pitch;
+
+/// Box passes per axis.
+pub const SCATTER_PASSES: usize = 4;
+
+/// The largest scatter-to-primary ratio accepted.
+pub const MAX_SCATTER_RATIO: f64 = 100.0;
+
+/// The largest scatter kernel σ accepted, mm.
+pub const MAX_SCATTER_SIGMA_MM: f64 = 1000.0;
+
+/// The largest scatter kernel σ accepted, in pixels of either axis.
+pub const MAX_SCATTER_SIGMA_PX: f64 = 1e4;
+
+/// Columns per strip of the column passes.
+const STRIP: usize = 64;
+
+/// Scatter added to the expected image before the quantum noise, as a constant
+/// scatter-to-primary ratio (SPR) and a broad normalised kernel `K` (2-D, separable, close to a
+/// Gaussian of `sigma_mm`): `Q ← Q + SPR · K ∗ Q`, `E ← E + SPR · K ∗ E`.
+///
+/// **An approximation.** Real scatter depends on the object (the SPR grows with the thickness
+/// crossed, the kernel with the air gap and the field size), its photons have lower energy than
+/// the primary ones, and an anti-scatter grid changes both; here one SPR and one kernel hold
+/// for the whole image, and scattered photons deposit the mean energy of the primary ones
+/// around them. The flat field of a radiograph has no scatter in it. Made only by
+/// [`Scatter::new`], so its numbers are always valid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scatter {
+    ratio: f64,
+    sigma_mm: f64,
+    /// Box radii per axis `[x, y]` (box width `2r + 1`), one per pass.
+    radii: [Vec<usize>; 2],
+}
+
+impl Scatter {
+    /// Scatter of ratio `ratio` (SPR, finite, 0 … [`MAX_SCATTER_RATIO`]) and kernel SD
+    /// `sigma_mm` (finite, > 0, ≤ [`MAX_SCATTER_SIGMA_MM`], and at most
+    /// [`MAX_SCATTER_SIGMA_PX`] pixels) on pixels of `pitch_mm` `[x, y]`. The error names the
+    /// field and what would be valid.
+    pub fn new(ratio: f64, sigma_mm: f64, pitch_mm: [f64; 2]) -> Result<Scatter, String> {
+        check_pitch(pitch_mm)?;
+        if !(0.0..=MAX_SCATTER_RATIO).contains(&ratio) {
+            return Err(format!(
+                "scatter ratio = {ratio} is not valid (must be finite and between 0 and \
+                 {MAX_SCATTER_RATIO}: the scatter-to-primary ratio)"
+            ));
+        }
+        if !(sigma_mm > 0.0 && sigma_mm <= MAX_SCATTER_SIGMA_MM) {
+            return Err(format!(
+                "scatter sigma_mm = {sigma_mm} is not valid (must be finite, > 0 and ≤ \
+                 {MAX_SCATTER_SIGMA_MM} mm)"
+            ));
+        }
+        let px = pitch_mm.map(|p| sigma_mm / p);
+        if px.iter().any(|&s| s > MAX_SCATTER_SIGMA_PX) {
+            return Err(format!(
+                "scatter sigma_mm = {sigma_mm} is more than {MAX_SCATTER_SIGMA_PX} pixels of \
+                 pitch {:?} mm (use a smaller sigma_mm)",
+                pitch_mm
+            ));
+        }
+        Ok(Scatter {
+            ratio,
+            sigma_mm,
+            radii: px.map(box_radii),
+        })
+    }
+
+    /// The scatter-to-primary ratio.
+    pub fn ratio(&self) -> f64 {
+        self.ratio
+    }
+
+    /// The kernel's nominal SD, mm.
+    pub fn sigma_mm(&self) -> f64 {
+        self.sigma_mm
+    }
+
+    /// The box widths of the passes along x and along y, px (odd).
+    pub fn box_widths_px(&self) -> [Vec<usize>; 2] {
+        self.radii
+            .clone()
+            .map(|r| r.iter().map(|r| 2 * r + 1).collect())
+    }
+
+    /// The variance of the kernel actually applied along x and along y, px²:
+    /// `Σ (w² − 1)/12` over the passes (compare with `(σ/p)²`).
+    pub fn kernel_variance_px2(&self) -> [f64; 2] {
+        self.box_widths_px()
+            .map(|w| w.iter().map(|&w| ((w * w - 1) as f64) / 12.0).sum())
+    }
+
+    /// `x + SPR · K ∗ x` for the `w × h` image `x` (row-major).
+    pub(crate) fn add_to(&self, x: &[f64], w: usize, h: usize) -> Vec<f64> {
+        let blurred = blur(x, w, h, &self.radii);
+        x.iter()
+            .zip(&blurred)
+            .map(|(&x, &s)| x + self.ratio * s)
+            .collect()
+    }
+}
+
+/// Kovesi's box radii for a Gaussian of `sigma_px`.
+fn box_radii(sigma_px: f64) -> Vec<usize> {
+    let n = SCATTER_PASSES as f64;
+    let var = sigma_px * sigma_px;
+    let ideal = libm::sqrt(12.0 * var / n + 1.0);
+    let mut wl = libm::floor(ideal) as usize;
+    if wl.is_multiple_of(2) {
+        wl = wl.saturating_sub(1);
+    }
+    let wl = wl.max(1);
+    let wlf = wl as f64;
+    let m = (12.0 * var - n * wlf * wlf - 4.0 * n * wlf - 3.0 * n) / (-4.0 * wlf - 4.0);
+    let m = libm::round(m).clamp(0.0, n) as usize;
+    (0..SCATTER_PASSES)
+        .map(|k| if k < m { (wl - 1) / 2 } else { (wl + 1) / 2 })
+        .collect()
+}
+
+/// `K ∗ x` normalised (module documentation): rows, then columns.
+fn blur(x: &[f64], w: usize, h: usize, radii: &[Vec<usize>; 2]) -> Vec<f64> {
+    if w == 0 || h == 0 {
+        return x.to_vec();
+    }
+    let along_rows = transpose(&blur_columns(&transpose(x, w, h), h, w, &radii[0]), h, w);
+    blur_columns(&along_rows, w, h, &radii[1])
+}
+
+/// The box cascade along every column of the `w × h` image `x`, renormalised at the borders.
+fn blur_columns(x: &[f64], w: usize, h: usize, radii: &[usize]) -> Vec<f64> {
+    let pad: usize = radii.iter().sum();
+    let len = h + 2 * pad;
+    // The cascade of the indicator: integers below 2⁵³, so exact.
+    let mut ind = vec![0.0; len];
+    ind[pad..pad + h].fill(1.0);
+    let den = cascade(ind, 1, radii);
+    let strips: Vec<Vec<f64>> = (0..w)
+        .step_by(STRIP)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|c0| {
+            let sw = STRIP.min(w - c0);
+            let mut a = vec![0.0; len * sw];
+            for j in 0..h {
+                a[(pad + j) * sw..(pad + j + 1) * sw]
+                    .copy_from_slice(&x[j * w + c0..j * w + c0 + sw]);
+            }
+            cascade(a, sw, radii)
+        })
+        .collect();
+    let mut out = vec![0.0; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        let d = den[pad + j];
+        for (s, c0) in strips.iter().zip((0..w).step_by(STRIP)) {
+            let sw = STRIP.min(w - c0);
+            for (o, &v) in row[c0..c0 + sw]
+                .iter_mut()
+                .zip(&s[(pad + j) * sw..(pad + j + 1) * sw])
+            {
+                *o = v / d;
+            }
+        }
+    });
+    out
+}
+
+/// The passes of box sums of radii `radii` down the rows of `a` (`len × sw`, row-major, zero
+/// outside), each a compensated running sum per column.
+fn cascade(mut a: Vec<f64>, sw: usize, radii: &[usize]) -> Vec<f64> {
+    let len = a.len() / sw;
+    let mut b = vec![0.0; a.len()];
+    let (mut hi, mut lo) = (vec![0.0; sw], vec![0.0; sw]);
+    for &r in radii {
+        hi.fill(0.0);
+        lo.fill(0.0);
+        for i in 0..r.min(len) {
+            two_sum(&mut hi, &mut lo, &a[i * sw..(i + 1) * sw], 1.0);
+        }
+        for i in 0..len {
+            if i + r < len {
+                two_sum(&mut hi, &mut lo, &a[(i + r) * sw..(i + r + 1) * sw], 1.0);
+            }
+            if i > r {
+                two_sum(&mut hi, &mut lo, &a[(i - r - 1) * sw..(i - r) * sw], -1.0);
+            }
+            for ((o, &h), &l) in b[i * sw..(i + 1) * sw].iter_mut().zip(&hi).zip(&lo) {
+                *o = h + l;
+            }
+        }
+        std::mem::swap(&mut a, &mut b);
+    }
+    a
+}
+
+/// `(hi, lo) += sign · x` per lane: Neumaier's two-sum, the rounding error kept in `lo`.
+#[inline(always)]
+fn two_sum(hi: &mut [f64], lo: &mut [f64], x: &[f64], sign: f64) {
+    for ((h, l), &v) in hi.iter_mut().zip(lo.iter_mut()).zip(x) {
+        let v = sign * v;
+        let s = *h + v;
+        let bb = s - *h;
+        *l += (*h - (s - bb)) + (v - bb);
+        *h = s;
+    }
+}
+
+/// The `w × h` image `x` (row-major) transposed to `h × w`.
+fn transpose(x: &[f64], w: usize, h: usize) -> Vec<f64> {
+    const B: usize = 32;
+    let mut out = vec![0.0; w * h];
+    out.par_chunks_mut(h * B)
+        .enumerate()
+        .for_each(|(bi, chunk)| {
+            let i0 = bi * B;
+            let rows = chunk.len() / h;
+            for j0 in (0..h).step_by(B) {
+                for j in j0..(j0 + B).min(h) {
+                    for di in 0..rows {
+                        chunk[di * h + j] = x[j * w + i0 + di];
+                    }
+                }
+            }
+        });
+    out
+}
