@@ -116,7 +116,7 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
     let factor = run.exposure_factor.unwrap_or(1.0);
     // The scene's own sampling and detector unsharpness (none unless its [imaging] asks).
     let sampling = Sampling::from_imaging(&s.imaging);
-    let unsharp = setup.unsharpness(&frame);
+    let unsharp = setup.unsharpness(&det.id);
     let electronic_key = NoiseKey::derive_electronic(
         s.seed,
         run.noise_level_index,

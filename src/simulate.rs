@@ -602,7 +602,7 @@ fn write_run(
                         &exposure.id,
                         &det.id,
                     );
-                    let unsharp = setup.unsharpness(&frame);
+                    let unsharp = setup.unsharpness(&det.id);
                     let image = attenuation::render(
                         setup,
                         parts,

@@ -16,7 +16,13 @@ use std::path::Path;
 
 use common::{hashes, root, run_scenario};
 
-const GOLDEN: &[&str] = &["small_biplanar", "small_uniplanar", "small_attenuation"];
+const GOLDEN: &[&str] = &[
+    "small_biplanar",
+    "small_uniplanar",
+    "small_attenuation",
+    "small_sampled",
+    "small_unsharp",
+];
 
 /// The crate version the golden hashes were blessed at.
 const VERSION_FILE: &str = "VERSION";
@@ -134,7 +140,12 @@ fn golden_scenarios_reproduce_their_hashes() {
 
 #[test]
 fn outputs_are_identical_on_one_and_two_threads() {
-    for name in ["small_biplanar", "small_attenuation"] {
+    for name in [
+        "small_biplanar",
+        "small_attenuation",
+        "small_sampled",
+        "small_unsharp",
+    ] {
         let tmp = tempfile::tempdir().unwrap();
         let (a, b) = (tmp.path().join("t1"), tmp.path().join("t2"));
         let scenario = format!("scenarios/golden/{name}.toml");

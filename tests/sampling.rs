@@ -157,15 +157,24 @@ fn absorption_centroid_errors(plan: &rsasim::simulate::Plan) -> Vec<f64> {
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
     let exposure = &run.exposures[0];
-    let parts = rsasim::attenuation::parts(&plan.loaded.scenario, setup, &plan.models, &[None], run, exposure)
-        .unwrap();
+    let parts = rsasim::attenuation::parts(
+        &plan.loaded.scenario,
+        setup,
+        &plan.models,
+        &[None],
+        run,
+        exposure,
+    )
+    .unwrap();
     let det = &run.detectors[0];
     let frame = det.frame();
     let source = run.source_of(det);
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    let ex = rsasim::attenuation::sampled::expected(setup, &parts, &frame, source, &beam, &detector, &sampling);
+    let ex = rsasim::attenuation::sampled::expected(
+        setup, &parts, &frame, source, &beam, &detector, &sampling,
+    );
     let w = frame.pixels[0] as i64;
     let mut errors = Vec::new();
     for m in &run.phantoms[0].markers {
@@ -190,7 +199,9 @@ fn absorption_centroid_errors(plan: &rsasim::simulate::Plan) -> Vec<f64> {
 fn attenuation_area_sampling_centres_bead_absorption_on_truth() {
     let (point, _, n) = p95(absorption_centroid_errors(&bead_plate("")));
     let (sampled, max, _) = p95(absorption_centroid_errors(&bead_plate("pixel_samples = 8")));
-    eprintln!("attenuation, {n} beads: point p95 {point:.4} px; 8×8 p95 {sampled:.4} px (max {max:.4})");
+    eprintln!(
+        "attenuation, {n} beads: point p95 {point:.4} px; 8×8 p95 {sampled:.4} px (max {max:.4})"
+    );
     assert!(point > 0.05, "point sampling p95 {point}");
     assert!(sampled <= 0.02, "8×8 p95 {sampled}");
 }
@@ -202,25 +213,39 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     let plan = bead_plate("");
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
-    let parts = rsasim::attenuation::parts(&plan.loaded.scenario, setup, &plan.models, &[None], run, &run.exposures[0])
-        .unwrap();
+    let parts = rsasim::attenuation::parts(
+        &plan.loaded.scenario,
+        setup,
+        &plan.models,
+        &[None],
+        run,
+        &run.exposures[0],
+    )
+    .unwrap();
     let det = &run.detectors[0];
     let (frame, source) = (det.frame(), run.source_of(det));
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    let sampled = rsasim::attenuation::sampled::expected(setup, &parts, &frame, source, &beam, &detector, &sampling);
-    let shadows: Vec<_> = parts.iter().map(|p| rsasim::trace::path_lengths(&frame, source, &p.object)).collect();
+    let sampled = rsasim::attenuation::sampled::expected(
+        setup, &parts, &frame, source, &beam, &detector, &sampling,
+    );
+    let shadows: Vec<_> = parts
+        .iter()
+        .map(|p| rsasim::trace::path_lengths(&frame, source, &p.object))
+        .collect();
     let layers: Vec<rsasim::response::Layer> = parts
         .iter()
         .zip(&shadows)
-        .filter_map(|(p, s)| s.as_ref().map(|pl| rsasim::response::Layer {
-            material: p.material,
-            sign: 1.0,
-            columns: pl.columns.start as usize..pl.columns.end as usize,
-            rows: pl.rows.start as usize..pl.rows.end as usize,
-            length_mm: &pl.length_mm,
-        }))
+        .filter_map(|(p, s)| {
+            s.as_ref().map(|pl| rsasim::response::Layer {
+                material: p.material,
+                sign: 1.0,
+                columns: pl.columns.start as usize..pl.columns.end as usize,
+                rows: pl.rows.start as usize..pl.rows.end as usize,
+                length_mm: &pl.length_mm,
+            })
+        })
         .collect();
     let fluence = rsasim::response::PointSourceFluence::new(&frame, source);
     let scene = rsasim::response::Scene {

@@ -8,7 +8,9 @@ use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::geometry::DetectorFrame;
 use crate::material::{self, Material};
 use crate::phantom::{PhantomModel, confine};
-use crate::response::{Beam, DetectorModel, Polarity, Response, Unsharpness};
+use crate::response::{
+    Beam, DetectorModel, Polarity, Psf, PsfShape, Response, Scatter, Unsharpness,
+};
 use crate::scenario::{LoadedScenario, PolarityOption, ResponseKind, Scenario};
 use crate::spectrum::Spectrum;
 
@@ -32,6 +34,39 @@ pub struct DetectorBlur {
     pub scatter: Option<(f64, f64)>,
     /// Electronic noise SD, DN.
     pub electronic_noise_dn: f64,
+}
+
+impl DetectorBlur {
+    /// The detector's [`Unsharpness`] for pixels of `pitch_mm`; the error names the scenario
+    /// key (`psf`, `mtf` or `scatter`) and what is wrong.
+    pub fn build(&self, pitch_mm: [f64; 2]) -> Result<Unsharpness, (&'static str, String)> {
+        let psf = match (self.psf_sigma_mm, &self.mtf) {
+            (Some(sigma_mm), _) => {
+                Some(Psf::new(PsfShape::Gaussian { sigma_mm }, pitch_mm).map_err(|e| ("psf", e))?)
+            }
+            (None, Some(table)) => Some(
+                Psf::new(
+                    PsfShape::Mtf {
+                        table: table.clone(),
+                    },
+                    pitch_mm,
+                )
+                .map_err(|e| ("mtf", e))?,
+            ),
+            (None, None) => None,
+        };
+        let scatter = match self.scatter {
+            Some((ratio, sigma_mm)) => {
+                Some(Scatter::new(ratio, sigma_mm, pitch_mm).map_err(|e| ("scatter", e))?)
+            }
+            None => None,
+        };
+        Ok(Unsharpness {
+            scatter,
+            psf,
+            electronic_noise_dn: self.electronic_noise_dn,
+        })
+    }
 }
 
 /// Everything attenuation mode needs besides the geometry of a run.
@@ -69,6 +104,8 @@ pub struct Setup {
     /// The detector's blur, scatter and electronic noise as the scenario gives them
     /// (`[imaging.detector]` psf, mtf, scatter, electronic_noise_dn).
     pub blur: DetectorBlur,
+    /// Per detector id, the blur, scatter and electronic noise built for its pixel pitch.
+    pub unsharp: Vec<(String, Unsharpness)>,
     /// The bytes of `spectrum_file` as read, for the output's `phantoms/` (so the output's own
     /// `scenario.toml` stands alone).
     pub spectrum_file_bytes: Option<Vec<u8>>,
@@ -149,6 +186,25 @@ impl Setup {
             None => vec![1.0; spectrum.energies_kev.len()],
         };
         let d = &im.detector;
+        let blur = DetectorBlur {
+            psf_sigma_mm: d.psf.as_ref().map(|p| p.sigma_mm),
+            mtf: d.mtf.clone(),
+            scatter: d.scatter.as_ref().map(|sc| (sc.ratio, sc.sigma_mm)),
+            electronic_noise_dn: d.electronic_noise_dn.unwrap_or(0.0),
+        };
+        let mut unsharp = Vec::with_capacity(s.detectors.len());
+        for det in &s.detectors {
+            let built = blur
+                .build(det.resolved_pixel_pitch_mm())
+                .map_err(|(field, message)| {
+                    err(
+                        key.key("detector").key(field),
+                        format!("detector `{}`: {message}", det.id),
+                        "see the README, \"Unsharpness and sampling\", for valid values",
+                    )
+                })?;
+            unsharp.push((det.id.clone(), built));
+        }
         Ok(Setup {
             materials,
             mean_energy_kev: spectrum.mean_energy_kev(),
@@ -169,21 +225,20 @@ impl Setup {
                 },
             },
             names,
-            blur: DetectorBlur {
-                psf_sigma_mm: d.psf.as_ref().map(|p| p.sigma_mm),
-                mtf: d.mtf.clone(),
-                scatter: d.scatter.as_ref().map(|sc| (sc.ratio, sc.sigma_mm)),
-                electronic_noise_dn: d.electronic_noise_dn.unwrap_or(0.0),
-            },
+            blur,
+            unsharp,
             spectrum_file_bytes,
         })
     }
 
-    /// What the detector adds beyond quantum noise on `frame` (its pitch sets the kernels).
-    pub fn unsharpness(&self, _frame: &DetectorFrame) -> Unsharpness {
-        Unsharpness {
-            electronic_noise_dn: self.blur.electronic_noise_dn,
-        }
+    /// What the detector of id `detector` adds beyond quantum noise (its kernels built for its
+    /// pitch when the setup was built); nothing for an unknown id.
+    pub fn unsharpness(&self, detector: &str) -> Unsharpness {
+        self.unsharp
+            .iter()
+            .find(|(id, _)| id == detector)
+            .map(|(_, u)| u.clone())
+            .unwrap_or_default()
     }
 
     /// Index of a material in use.

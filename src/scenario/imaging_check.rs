@@ -504,7 +504,11 @@ impl Check<'_> {
             let mp = dp.key("mtf");
             let help = "rows [cycles_per_mm, value]: the first [0.0, 1.0], frequencies ascending, values from 0 to 1, e.g. [[0.0, 1.0], [1.0, 0.7], [2.0, 0.35], [3.0, 0.15]]";
             if rows.len() < 2 {
-                self.err(mp.clone(), format!("the MTF has {} row(s)", rows.len()), help);
+                self.err(
+                    mp.clone(),
+                    format!("the MTF has {} row(s)", rows.len()),
+                    help,
+                );
             } else if rows[0] != [0.0, 1.0] {
                 self.err(
                     mp.index(0),
@@ -513,7 +517,9 @@ impl Check<'_> {
                 );
             }
             for (k, r) in rows.iter().enumerate() {
-                let bad = !(r[0].is_finite() && r[0] <= 1e3 && (0.0..=1.0).contains(&r[1]))
+                let bad = !(r[0].is_finite()
+                    && r[0] <= crate::response::psf::MAX_MTF_FREQUENCY
+                    && (0.0..=1.0).contains(&r[1]))
                     || (k > 0 && !(r[0] > rows[k - 1][0]));
                 if bad {
                     self.err(
