@@ -143,8 +143,36 @@ impl Cost {
         } else {
             BYTES_PER_PIXEL_IN_FLIGHT
         };
+        // Area sampling or a focal spot: the pixel samples are traced one strip at a time
+        // (`sampling::strip`): per strip its hits (binary, u16) or every volume's path lengths
+        // and three expected values (attenuation, f64); per image the covered fraction (f64)
+        // and a count (u32), or three expected images (f64). The detector's blur, scatter and
+        // electronic noise hold about four more f64 images.
+        let im = &s.imaging;
+        let (per_pixel, strip_bytes) = if im.is_point_sampled() {
+            (per_pixel, 0)
+        } else {
+            let n = u64::from(im.samples_per_side());
+            let samples = largest_image
+                .saturating_mul(n * n)
+                .min(crate::sampling::strip::STRIP_SAMPLES as u64);
+            if im.is_attenuation() {
+                let volumes: u64 = models.iter().map(|m| m.volumes.len() as u64).sum();
+                (per_pixel + 24, samples.saturating_mul(8 * volumes + 24))
+            } else {
+                (per_pixel + 12, samples.saturating_mul(2))
+            }
+        };
+        let d = &im.detector;
+        let blurred = im.is_attenuation()
+            && (d.psf.is_some()
+                || d.mtf.is_some()
+                || d.scatter.is_some()
+                || d.electronic_noise_dn.is_some_and(|e| e > 0.0));
+        let per_pixel = per_pixel + if blurred { 32 } else { 0 };
         let in_flight = largest_image
             .saturating_mul(per_pixel)
+            .saturating_add(strip_bytes)
             .saturating_mul(threads.min(runs.max(1)));
         let mesh_memory: u64 = models
             .iter()
