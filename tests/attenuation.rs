@@ -288,3 +288,99 @@ fn a_user_spectrum_travels_with_the_output_and_reconstruct_says_it_reads_binary_
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("attenuation mode"), "{err}");
 }
+
+#[test]
+fn bad_detector_blur_is_refused_naming_the_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "psf = { sigma_mm = -0.1 }",
+            "psf.sigma_mm",
+            "PSF sigma -0.1 mm is out of range",
+        ),
+        (
+            "psf = { sigma_mm = 0.1 }\nmtf = [[0.0, 1.0], [1.0, 0.5]]",
+            "mtf",
+            "psf or mtf, not both",
+        ),
+        (
+            "mtf = [[0.5, 1.0], [1.0, 0.5]]",
+            "mtf[0]",
+            "the MTF starts at [0.5, 1]",
+        ),
+        (
+            "mtf = [[0.0, 1.0], [2.0, 0.5], [1.0, 0.2]]",
+            "mtf[2]",
+            "MTF row 2 [1, 0.2] is not valid",
+        ),
+        (
+            "scatter = { ratio = -0.2, sigma_mm = 40.0 }",
+            "scatter.ratio",
+            "scatter-to-primary ratio -0.2 is out of range",
+        ),
+        (
+            "scatter = { ratio = 0.2, sigma_mm = 0.0 }",
+            "scatter.sigma_mm",
+            "scatter kernel sigma 0 mm is out of range",
+        ),
+        (
+            "electronic_noise_dn = -1.0",
+            "electronic_noise_dn",
+            "electronic noise -1 DN is out of range",
+        ),
+    ];
+    for (k, (line, key, message)) in cases.iter().enumerate() {
+        let text = water_cylinder("").replace("gain = 1e-5", &format!("gain = 1e-5\n{line}"));
+        let scenario = write(tmp.path(), &format!("s{k}.toml"), &text);
+        let out = tmp.path().join(format!("out{k}"));
+        let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{line}: {err}");
+        assert!(
+            err.contains(&format!("imaging.detector.{key}")),
+            "{line}: {err}"
+        );
+        assert!(err.contains(message), "{line}: {err}");
+        assert!(
+            err.contains(&format!("s{k}.toml:")),
+            "names the file and line: {err}"
+        );
+        assert!(!out.exists(), "nothing written");
+    }
+}
+
+#[test]
+fn a_detector_psf_blurs_the_edges_and_keeps_the_signal() {
+    // The water cylinder sharp and with a 2 mm Gaussian PSF (1 mm pixels): the blurred image has
+    // the same total (the kernel is normalised, borders renormalised) and a smaller largest step
+    // between neighbours across the cylinder's edge.
+    let tmp = tempfile::tempdir().unwrap();
+    let mut images = Vec::new();
+    for (name, extra) in [("sharp", ""), ("blurred", "psf = { sigma_mm = 2.0 }")] {
+        let text = water_cylinder("").replace("gain = 1e-5", &format!("gain = 1e-5\n{extra}"));
+        let scenario = write(tmp.path(), &format!("{name}.toml"), &text);
+        let out = tmp.path().join(name);
+        let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (w, _, px) =
+            rsasim::reconstruct::exam::read_image(&out.join("runs/n0-r00"), "x-det").unwrap();
+        images.push((px, w));
+    }
+    let total = |px: &[u16]| px.iter().map(|&v| f64::from(v)).sum::<f64>();
+    let (sharp, blurred) = (&images[0].0, &images[1].0);
+    let w = images[0].1 as usize;
+    let ratio = total(blurred) / total(sharp);
+    assert!((ratio - 1.0).abs() < 1e-3, "total changed by {ratio}");
+    let max_step = |px: &[u16]| {
+        let row = &px[32 * w..33 * w];
+        row.windows(2)
+            .map(|p| (f64::from(p[0]) - f64::from(p[1])).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        max_step(blurred) < 0.8 * max_step(sharp),
+        "{} vs {}",
+        max_step(blurred),
+        max_step(sharp)
+    );
+}

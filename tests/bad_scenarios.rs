@@ -231,6 +231,34 @@ const CASES: &[(&str, &str, &str, &str, &str)] = &[
         "cannot read mesh",
         "file = \"MESHFILE\"",
     ),
+    (
+        "no rays per pixel",
+        "seed = 1",
+        "seed = 1\n[imaging]\npixel_samples = 0",
+        "pixel_samples = 0 is out of range",
+        "pixel_samples = 0",
+    ),
+    (
+        "negative focal spot",
+        "seed = 1",
+        "seed = 1\n[imaging]\nfocal_spot = { size_mm = -1.2 }",
+        "focal spot size -1.2 mm is out of range",
+        "focal_spot = { size_mm = -1.2 }",
+    ),
+    (
+        "too many focal spot sub-sources",
+        "seed = 1",
+        "seed = 1\n[imaging.focal_spot]\nsize_mm = 0.6\nsamples = 40",
+        "samples = 40 is out of range",
+        "samples = 40",
+    ),
+    (
+        "unknown focal spot profile",
+        "seed = 1",
+        "seed = 1\n[imaging.focal_spot]\nsize_mm = 0.6\nprofile = \"round\"",
+        "unknown variant `round`",
+        "profile = \"round\"",
+    ),
 ];
 
 fn line_of(text: &str, needle: &str) -> usize {
