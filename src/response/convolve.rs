@@ -4,7 +4,10 @@
 //! Output pixel `(i, j)` along a row is `Σ_k w_k · x_{i+k} / Σ_k w_k`, both sums over the taps
 //! `k = −R … R` (ascending, from 0) whose pixel `i + k` lies in the image: the kernel truncated
 //! at the border and renormalised there, so a uniform image stays uniform (within rounding) and
-//! interior pixels divide by the kernel's own sum (1 within rounding). Rows first, then columns.
+//! interior pixels divide by the kernel's own sum (1 within rounding). A pixel within the
+//! half-width `R` of the border is such a renormalised mean, so an object closer than `2R` to
+//! the border does not keep its total exactly; an isolated one does (test
+//! `a_symmetric_blob_keeps_its_centroid_and_total`). Rows first, then columns.
 //! Every output value is the same sequence of IEEE operations whatever the number of threads.
 
 use rayon::prelude::*;

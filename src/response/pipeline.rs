@@ -277,6 +277,21 @@ mod tests {
         f(&beam, &scene)
     }
 
+    /// A 12-bit detector whose open field at the reference point sits at `fraction · i_max`.
+    fn det_12bit(
+        beam: &Beam,
+        response: Response,
+        polarity: Polarity,
+        offset: f64,
+        fraction: f64,
+    ) -> DetectorModel {
+        let eta = [0.9, 0.7, 0.5];
+        let gain = DetectorModel::auto_gain(&response, beam, &eta, offset, fraction, 4095);
+        let mut det = detector(response, polarity, gain, offset);
+        det.i_max = 4095;
+        det
+    }
+
     fn polarities() -> [Polarity; 2] {
         [Polarity::Raw, Polarity::Radiograph { range: 6.0 }]
     }
@@ -286,16 +301,7 @@ mod tests {
         with_scene(|beam, scene| {
             for polarity in polarities() {
                 for response in [Response::EnergyIntegrating, Response::PhotonCounting] {
-                    let gain = DetectorModel::auto_gain(
-                        &response,
-                        beam,
-                        &[0.9, 0.7, 0.5],
-                        50.0,
-                        0.99,
-                        4095,
-                    );
-                    let mut det = detector(response, polarity, gain, 50.0);
-                    det.i_max = 4095;
+                    let det = det_12bit(beam, response, polarity, 50.0, 0.99);
                     let e = expected(beam, &det, scene);
                     let want = render(beam, &det, scene, &key());
                     let got = render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
@@ -313,15 +319,11 @@ mod tests {
                             .zip(&e.quanta)
                             .all(|(a, b)| a.to_bits() == b.to_bits())
                     );
-                    let s_ref = open_signal_per_fluence_of(&det, beam);
+                    let s_ref = crate::response::open_signal_per_fluence(&det, beam);
                     assert!(e.open_signal.iter().all(|&o| o <= s_ref && o > 0.5 * s_ref));
                 }
             }
         });
-    }
-
-    fn open_signal_per_fluence_of(det: &DetectorModel, beam: &Beam) -> f64 {
-        crate::response::open_signal_per_fluence(det, beam)
     }
 
     #[test]
@@ -329,13 +331,7 @@ mod tests {
         // No photons: the raw value is offset + noise (sd 40 DN), rounded (+1/12 variance).
         let (w, h) = (400, 250);
         let n = w * h;
-        let e = Expected {
-            width: w,
-            height: h,
-            quanta: vec![0.0; n],
-            energy_kev: vec![0.0; n],
-            open_signal: vec![1.0; n],
-        };
+        let e = expected_of(w, h, 1.0, |_, _| 0.0);
         let det = detector(Response::EnergyIntegrating, Polarity::Raw, 1.0, 1000.0);
         let unsharp = Unsharpness {
             electronic_noise_dn: 40.0,
@@ -359,7 +355,7 @@ mod tests {
         let mut rng = ekey().row_rng(7);
         for i in 0..w {
             let z = standard_normal(&mut rng);
-            let raw = 1000.0 + 1.0 * 0.0 + 40.0 * z;
+            let raw = 1000.0 + 40.0 * z;
             assert_eq!(
                 r.pixels[7 * w + i],
                 super::super::digitise::quantise(raw, u16::MAX)
@@ -376,13 +372,7 @@ mod tests {
         // stays white, positive e gives ln(S_open · gain / e) / range · i_max.
         let (w, h) = (64, 8);
         let n = w * h;
-        let e = Expected {
-            width: w,
-            height: h,
-            quanta: vec![0.0; n],
-            energy_kev: vec![0.0; n],
-            open_signal: vec![5000.0; n],
-        };
+        let e = expected_of(w, h, 5000.0, |_, _| 0.0);
         let det = detector(
             Response::PhotonCounting,
             Polarity::Radiograph { range: 7.0 },
@@ -628,16 +618,7 @@ mod tests {
             };
             for polarity in polarities() {
                 for response in [Response::EnergyIntegrating, Response::PhotonCounting] {
-                    let gain = DetectorModel::auto_gain(
-                        &response,
-                        beam,
-                        &[0.9, 0.7, 0.5],
-                        20.0,
-                        0.8,
-                        4095,
-                    );
-                    let mut det = detector(response, polarity, gain, 20.0);
-                    det.i_max = 4095;
+                    let det = det_12bit(beam, response, polarity, 20.0, 0.8);
                     let e = expected(beam, &det, scene);
                     for psf in [
                         gaussian_psf(1.1, pitch),
