@@ -371,7 +371,6 @@ mod tests {
         // Photon counting, Q = 0 (S = 0 would be white): with noise, S = e/gain; negative e
         // stays white, positive e gives ln(S_open · gain / e) / range · i_max.
         let (w, h) = (64, 8);
-        let n = w * h;
         let e = expected_of(w, h, 5000.0, |_, _| 0.0);
         let det = detector(
             Response::PhotonCounting,
