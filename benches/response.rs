@@ -9,6 +9,12 @@
 //! - `mono_raw`, `mono_raw_1t`, `mono_radiograph`: one 60 keV bin, photon counting.
 //! - `poly30_expected`: `expected_quanta` alone, 30 bins (20–90 keV).
 //! - `poly30_raw`, `poly30_radiograph`: the whole response with 30 bins, energy integrating.
+//! - `poly30_expected_image`: `expected` (Q, E and S_open of every pixel), 30 bins.
+//! - `from_expected_plain`: `render_expected` of that image with every option off (the same
+//!   bytes as `poly30_raw`: quantum noise and digitisation only).
+//! - `from_expected_psf`, `from_expected_scatter`, `from_expected_scatter_psf_e`: with a
+//!   Gaussian PSF of σ = 0.15 mm, scatter (SPR 0.3, σ = 40 mm), and both plus 2 DN of
+//!   electronic noise.
 //!
 //! Run with `cargo bench --bench response`. This asserts nothing; medians are in
 //! `target/criterion/response/<function>/new/estimates.json`.
@@ -21,8 +27,8 @@ use glam::DVec3;
 use rsasim::geometry::{DetectorFrame, Pose};
 use rsasim::noise::NoiseKey;
 use rsasim::response::{
-    Beam, DetectorModel, Fluence, Layer, Polarity, Response, Scene, expected_quanta,
-    point_source_fluence, render,
+    Beam, DetectorModel, Fluence, Layer, Polarity, Psf, PsfShape, Response, Scatter, Scene,
+    Unsharpness, expected, expected_quanta, point_source_fluence, render, render_expected,
 };
 
 const N: usize = 1440;
@@ -144,8 +150,28 @@ fn bench(c: &mut Criterion) {
     let poly_raw = detector(Response::EnergyIntegrating, 30, &poly, Polarity::Raw);
     let poly_rad = detector(Response::EnergyIntegrating, 30, &poly, radiograph);
 
+    let pitch = [0.2986, 0.2986];
+    let ekey = NoiseKey::derive_electronic(1, 0, 0, "bench", "det");
+    let image = expected(&poly, &poly_raw, &scene(poly_mu));
+    let psf = Psf::new(PsfShape::Gaussian { sigma_mm: 0.15 }, pitch).expect("a valid PSF");
+    let scatter = Scatter::new(0.3, 40.0, pitch).expect("valid scatter");
+    let plain = Unsharpness::default();
+    let with_psf = Unsharpness {
+        psf: Some(psf.clone()),
+        ..Default::default()
+    };
+    let with_scatter = Unsharpness {
+        scatter: Some(scatter.clone()),
+        ..Default::default()
+    };
+    let with_all = Unsharpness {
+        scatter: Some(scatter),
+        psf: Some(psf),
+        electronic_noise_dn: 2.0,
+    };
+
     // CPU time over all threads (immune to other processes on a shared machine), median of 3.
-    let cases: [(&str, &dyn Fn()); 5] = [
+    let cases: [(&str, &dyn Fn()); 10] = [
         ("mono_raw", &|| {
             drop(render(&mono, &mono_raw, &scene(mono_mu), &key))
         }),
@@ -160,6 +186,27 @@ fn bench(c: &mut Criterion) {
         }),
         ("poly30_radiograph", &|| {
             drop(render(&poly, &poly_rad, &scene(poly_mu), &key))
+        }),
+        ("poly30_expected_image", &|| {
+            drop(expected(&poly, &poly_raw, &scene(poly_mu)))
+        }),
+        ("from_expected_plain", &|| {
+            drop(render_expected(&poly_raw, &image, &plain, &key, &ekey))
+        }),
+        ("from_expected_psf", &|| {
+            drop(render_expected(&poly_raw, &image, &with_psf, &key, &ekey))
+        }),
+        ("from_expected_scatter", &|| {
+            drop(render_expected(
+                &poly_raw,
+                &image,
+                &with_scatter,
+                &key,
+                &ekey,
+            ))
+        }),
+        ("from_expected_scatter_psf_e", &|| {
+            drop(render_expected(&poly_raw, &image, &with_all, &key, &ekey))
         }),
     ];
     for (name, f) in cases {
@@ -197,6 +244,19 @@ fn bench(c: &mut Criterion) {
     g.bench_function("poly30_radiograph", |b| {
         b.iter(|| render(&poly, &poly_rad, &scene(poly_mu), black_box(&key)))
     });
+    g.bench_function("poly30_expected_image", |b| {
+        b.iter(|| expected(black_box(&poly), &poly_raw, &scene(poly_mu)))
+    });
+    for (name, unsharp) in [
+        ("from_expected_plain", &plain),
+        ("from_expected_psf", &with_psf),
+        ("from_expected_scatter", &with_scatter),
+        ("from_expected_scatter_psf_e", &with_all),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| render_expected(&poly_raw, &image, unsharp, black_box(&key), &ekey))
+        });
+    }
     g.finish();
 }
 

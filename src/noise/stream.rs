@@ -25,6 +25,11 @@
 //! 4. **Uniform doubles.** [`uniform`] maps one `u64` `x` to `(x >> 11) · 2⁻⁵³`, a multiple of
 //!    2⁻⁵³ in `[0, 1)` (exact in binary64).
 //!
+//! The electronic (read-out) noise of attenuation mode has its own keys, made the same way from
+//! the label `rsasim/electronic/v1/{seed}/{level}/{run}/{exposure}/{detector}`
+//! ([`NoiseKey::derive_electronic`]), with the same row streams; how its uniforms become normal
+//! samples is in [`super::normal`].
+//!
 //! Because every row has its own generator, the output does not depend on the number of threads
 //! or on the order in which rows are processed. How the uniforms become Poisson counts is in
 //! [`super::poisson`]; which pixel takes which sample is in [`super`].

@@ -4,7 +4,10 @@
 //! Output pixel `(i, j)` along a row is `Σ_k w_k · x_{i+k} / Σ_k w_k`, both sums over the taps
 //! `k = −R … R` (ascending, from 0) whose pixel `i + k` lies in the image: the kernel truncated
 //! at the border and renormalised there, so a uniform image stays uniform (within rounding) and
-//! interior pixels divide by the kernel's own sum (1 within rounding). Rows first, then columns.
+//! interior pixels divide by the kernel's own sum (1 within rounding). A pixel within the
+//! half-width `R` of the border is such a renormalised mean, so an object closer than `2R` to
+//! the border does not keep its total exactly; an isolated one does (test
+//! `a_symmetric_blob_keeps_its_centroid_and_total`). Rows first, then columns.
 //! Every output value is the same sequence of IEEE operations whatever the number of threads.
 
 use rayon::prelude::*;
@@ -158,5 +161,64 @@ mod tests {
         let k = [0.1, 0.2, 0.4, 0.2, 0.1];
         let out = convolve(&vec![7.25; w * h], w, h, &k, &k);
         assert!(out.iter().all(|&v| (v - 7.25).abs() < 1e-14 * 7.25));
+    }
+
+    #[test]
+    fn a_symmetric_blob_keeps_its_centroid_and_total() {
+        use crate::response::{Psf, PsfShape};
+        // A smooth MTF (a tabulated Gaussian, 41 rows down to 10⁻⁶): a short kernel.
+        let mtf = PsfShape::Mtf {
+            table: (0..=40)
+                .map(|i| {
+                    let f = 2.0 * i as f64 / 40.0;
+                    [f, libm::exp(-f * f * 3.4539)]
+                })
+                .collect(),
+        };
+        for shape in [PsfShape::Gaussian { sigma_mm: 0.35 }, mtf] {
+            let psf = Psf::new(shape, [0.2, 0.3]).unwrap();
+            // Isolated: no output pixel within the kernel's reach of the blob has a window cut
+            // by the border (closer, the renormalisation would scale its share).
+            let (rx, ry) = (psf.kernel_x().len() / 2, psf.kernel_y().len() / 2);
+            let (w, h) = (4 * rx + 11, 4 * ry + 9);
+            let (mx, my) = ((w / 2) as f64, (h / 2) as f64);
+            // Blobs symmetric about a pixel centre and about a pixel corner: x(c + d) = x(c − d).
+            for (cx, cy) in [(mx + 0.5, my + 0.5), (mx, my)] {
+                let img: Vec<f64> = (0..w * h)
+                    .map(|p| {
+                        let (x, y) = ((p % w) as f64 + 0.5 - cx, (p / w) as f64 + 0.5 - cy);
+                        let r2 = x * x / 16.0 + y * y / 9.0;
+                        if r2 < 1.0 {
+                            1000.0 * (1.0 - r2) + 7.0
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                let out = convolve(&img, w, h, psf.kernel_x(), psf.kernel_y());
+                let moments = |v: &[f64]| {
+                    let (mut m0, mut mx, mut my) = (0.0, 0.0, 0.0);
+                    for (p, &a) in v.iter().enumerate() {
+                        m0 += a;
+                        mx += a * ((p % w) as f64 + 0.5);
+                        my += a * ((p / w) as f64 + 0.5);
+                    }
+                    (m0, mx / m0, my / m0)
+                };
+                let (t0, x0, y0) = moments(&img);
+                let (t1, x1, y1) = moments(&out);
+                assert!((t1 - t0).abs() < 1e-12 * t0, "total {t1} vs {t0}");
+                assert!(
+                    (x1 - cx).abs() < 1e-9 && (y1 - cy).abs() < 1e-9,
+                    "{x1} {y1}"
+                );
+                assert!((x0 - cx).abs() < 1e-9 && (y0 - cy).abs() < 1e-9);
+                // And it did blur.
+                assert!(
+                    out.iter().filter(|&&v| v > 0.0).count()
+                        > img.iter().filter(|&&v| v > 0.0).count()
+                );
+            }
+        }
     }
 }

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::expected::{Bins, row_expected};
+use super::expected::Bins;
 use super::{Beam, DetectorModel, Prepared, RenderScratch, Scene, open_signal};
 
 /// The noise-free expected values of every pixel of an image or of a strip of one.
@@ -70,18 +70,7 @@ pub fn expected(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Expected {
             .zip(open_signal.par_chunks_mut(w))
             .enumerate()
             .for_each_init(RenderScratch::default, |s, (j, ((q, e), o))| {
-                s.fluence.resize(w, 0.0);
-                scene.fluence.row(j, &mut s.fluence);
-                row_expected(
-                    &prep.bins,
-                    scene,
-                    &prep.active,
-                    j,
-                    &s.fluence,
-                    q,
-                    Some(e),
-                    &mut s.rows,
-                );
+                prep.row(scene, j, &mut s.fluence, &mut s.rows, q, Some(e));
                 for (o, &f) in o.iter_mut().zip(&s.fluence) {
                     *o = f * open;
                 }

@@ -29,9 +29,22 @@
 //!   by default (0.09 % transmission). `S = 0` is white. This is an ideal flat-field correction:
 //!   it uses the signal before gain, offset and clipping, so it does not depend on them.
 //!
-//! Values are rounded half up. Not modelled here: scatter, blur (focal spot, detector PSF),
-//! the Swank factor, electronic (read-out) noise, dark current, gain non-uniformity and the heel
-//! effect.
+//! Values are rounded half up. [`render`] does all of this in one pass per row (the sharp
+//! image). Not modelled there: scatter, blur (focal spot, detector PSF), the Swank factor,
+//! electronic (read-out) noise, dark current, gain non-uniformity and the heel effect.
+//!
+//! # Unsharpness and extra noise (issue 12)
+//!
+//! [`expected`] gives the noise-free image as a whole ([`Expected`]: `Q`, `E` and `S_open` of
+//! every pixel, bit for bit what [`render`] draws from); a caller may average several (sub-pixel
+//! samples, focal-spot sub-sources). [`render_expected`] then renders it in the order of the
+//! physics, each step optional ([`Unsharpness`], all off by default, then bit for bit
+//! [`render`]): [`Scatter`] added to `Q` and `E` (an approximation: one scatter-to-primary ratio
+//! and a broad almost-Gaussian kernel), quantum noise as above, the detector [`Psf`] on the
+//! noisy signal `S` (so the noise becomes correlated, its power spectrum ∝ MTF², as in an
+//! indirect flat panel) and on the flat field `S_open` of a radiograph, Gaussian electronic noise
+//! added to the raw value (`S + e/gain` in a radiograph) on streams of its own
+//! ([`NoiseKey::derive_electronic`]), then the digitisation above.
 //!
 //! # Noise draws (the documented order)
 //!
@@ -405,6 +418,32 @@ impl Prepared {
         );
         Prepared { bins, active }
     }
+
+    /// Row `j`'s fluence (into `fluence`, resized to W) and its expected quanta (and, with
+    /// `energy`, expected energy) by [`row_expected`].
+    #[inline]
+    fn row(
+        &self,
+        scene: &Scene,
+        j: usize,
+        fluence: &mut Vec<f64>,
+        rows: &mut RowScratch,
+        quanta: &mut [f64],
+        energy: Option<&mut [f64]>,
+    ) {
+        fluence.resize(scene.width, 0.0);
+        scene.fluence.row(j, fluence);
+        row_expected(
+            &self.bins,
+            scene,
+            &self.active,
+            j,
+            fluence,
+            quanta,
+            energy,
+            rows,
+        );
+    }
 }
 
 /// The expected detected quanta `Q` of every pixel (W×H, row-major, fluence and efficiency
@@ -422,18 +461,7 @@ pub fn expected_quanta(beam: &Beam, det: &DetectorModel, scene: &Scene) -> Vec<f
     out.par_chunks_mut(w)
         .enumerate()
         .for_each_init(RenderScratch::default, |s, (j, row)| {
-            s.fluence.resize(w, 0.0);
-            scene.fluence.row(j, &mut s.fluence);
-            row_expected(
-                &prep.bins,
-                scene,
-                &prep.active,
-                j,
-                &s.fluence,
-                row,
-                None,
-                &mut s.rows,
-            );
+            prep.row(scene, j, &mut s.fluence, &mut s.rows, row, None);
         });
     out
 }
@@ -473,21 +501,10 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
         .par_chunks_mut(w)
         .enumerate()
         .map_init(RenderScratch::default, |s, (j, row)| {
-            s.fluence.resize(w, 0.0);
             s.quanta.resize(w, 0.0);
             s.energy_kev.resize(w, 0.0);
-            scene.fluence.row(j, &mut s.fluence);
             let energy = integrating.then_some(&mut s.energy_kev[..]);
-            row_expected(
-                &prep.bins,
-                scene,
-                &prep.active,
-                j,
-                &s.fluence,
-                &mut s.quanta,
-                energy,
-                &mut s.rows,
-            );
+            prep.row(scene, j, &mut s.fluence, &mut s.rows, &mut s.quanta, energy);
             let fluence = &s.fluence;
             let f_max = fluence.iter().fold(0.0f64, |m, &f| m.max(f));
             let mut rng = key.row_rng(j as u32);

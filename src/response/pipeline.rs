@@ -277,6 +277,21 @@ mod tests {
         f(&beam, &scene)
     }
 
+    /// A 12-bit detector whose open field at the reference point sits at `fraction · i_max`.
+    fn det_12bit(
+        beam: &Beam,
+        response: Response,
+        polarity: Polarity,
+        offset: f64,
+        fraction: f64,
+    ) -> DetectorModel {
+        let eta = [0.9, 0.7, 0.5];
+        let gain = DetectorModel::auto_gain(&response, beam, &eta, offset, fraction, 4095);
+        let mut det = detector(response, polarity, gain, offset);
+        det.i_max = 4095;
+        det
+    }
+
     fn polarities() -> [Polarity; 2] {
         [Polarity::Raw, Polarity::Radiograph { range: 6.0 }]
     }
@@ -286,16 +301,7 @@ mod tests {
         with_scene(|beam, scene| {
             for polarity in polarities() {
                 for response in [Response::EnergyIntegrating, Response::PhotonCounting] {
-                    let gain = DetectorModel::auto_gain(
-                        &response,
-                        beam,
-                        &[0.9, 0.7, 0.5],
-                        50.0,
-                        0.99,
-                        4095,
-                    );
-                    let mut det = detector(response, polarity, gain, 50.0);
-                    det.i_max = 4095;
+                    let det = det_12bit(beam, response, polarity, 50.0, 0.99);
                     let e = expected(beam, &det, scene);
                     let want = render(beam, &det, scene, &key());
                     let got = render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
@@ -313,15 +319,11 @@ mod tests {
                             .zip(&e.quanta)
                             .all(|(a, b)| a.to_bits() == b.to_bits())
                     );
-                    let s_ref = open_signal_per_fluence_of(&det, beam);
+                    let s_ref = crate::response::open_signal_per_fluence(&det, beam);
                     assert!(e.open_signal.iter().all(|&o| o <= s_ref && o > 0.5 * s_ref));
                 }
             }
         });
-    }
-
-    fn open_signal_per_fluence_of(det: &DetectorModel, beam: &Beam) -> f64 {
-        crate::response::open_signal_per_fluence(det, beam)
     }
 
     #[test]
@@ -329,13 +331,7 @@ mod tests {
         // No photons: the raw value is offset + noise (sd 40 DN), rounded (+1/12 variance).
         let (w, h) = (400, 250);
         let n = w * h;
-        let e = Expected {
-            width: w,
-            height: h,
-            quanta: vec![0.0; n],
-            energy_kev: vec![0.0; n],
-            open_signal: vec![1.0; n],
-        };
+        let e = expected_of(w, h, 1.0, |_, _| 0.0);
         let det = detector(Response::EnergyIntegrating, Polarity::Raw, 1.0, 1000.0);
         let unsharp = Unsharpness {
             electronic_noise_dn: 40.0,
@@ -359,7 +355,7 @@ mod tests {
         let mut rng = ekey().row_rng(7);
         for i in 0..w {
             let z = standard_normal(&mut rng);
-            let raw = 1000.0 + 1.0 * 0.0 + 40.0 * z;
+            let raw = 1000.0 + 40.0 * z;
             assert_eq!(
                 r.pixels[7 * w + i],
                 super::super::digitise::quantise(raw, u16::MAX)
@@ -375,14 +371,7 @@ mod tests {
         // Photon counting, Q = 0 (S = 0 would be white): with noise, S = e/gain; negative e
         // stays white, positive e gives ln(S_open · gain / e) / range · i_max.
         let (w, h) = (64, 8);
-        let n = w * h;
-        let e = Expected {
-            width: w,
-            height: h,
-            quanta: vec![0.0; n],
-            energy_kev: vec![0.0; n],
-            open_signal: vec![5000.0; n],
-        };
+        let e = expected_of(w, h, 5000.0, |_, _| 0.0);
         let det = detector(
             Response::PhotonCounting,
             Polarity::Radiograph { range: 7.0 },
@@ -420,5 +409,244 @@ mod tests {
             );
         }
         assert!(Unsharpness::default().check().is_ok());
+    }
+
+    /// A `w × h` expected image of quanta `q(i, j)`, energy 60 keV per quantum, open field
+    /// `open`.
+    fn expected_of(w: usize, h: usize, open: f64, q: impl Fn(usize, usize) -> f64) -> Expected {
+        let quanta: Vec<f64> = (0..w * h).map(|p| q(p % w, p / w)).collect();
+        Expected {
+            width: w,
+            height: h,
+            energy_kev: quanta.iter().map(|q| 60.0 * q).collect(),
+            quanta,
+            open_signal: vec![open; w * h],
+        }
+    }
+
+    fn gaussian_psf(sigma_mm: f64, pitch: [f64; 2]) -> crate::response::Psf {
+        crate::response::Psf::new(crate::response::PsfShape::Gaussian { sigma_mm }, pitch).unwrap()
+    }
+
+    /// Lag-1 correlation along rows (`dx = 1`) or columns, and the variance.
+    fn lag1(v: &[f64], w: usize, along_rows: bool) -> (f64, f64) {
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
+        let (mut c, mut m) = (0.0, 0.0);
+        for p in 0..v.len() {
+            let q = if along_rows { p + 1 } else { p + w };
+            if q < v.len() && (!along_rows || q % w != 0) {
+                c += (v[p] - mean) * (v[q] - mean);
+                m += 1.0;
+            }
+        }
+        (c / m / var, var)
+    }
+
+    /// The distance between the 90 % and 10 % crossings of a falling edge profile (1 → 0),
+    /// each found by linear interpolation between pixel centres, px.
+    fn width_10_90(y: &[f64]) -> f64 {
+        let cross = |level: f64| {
+            let t = (0..y.len() - 1)
+                .find(|&t| y[t] >= level && y[t + 1] < level)
+                .expect("the profile crosses the level");
+            t as f64 + (y[t] - level) / (y[t] - y[t + 1])
+        };
+        cross(0.1) - cross(0.9)
+    }
+
+    #[test]
+    fn a_noise_free_step_has_the_predicted_10_to_90_width() {
+        // 10¹² quanta: the quantum noise is 10⁻⁶ of the signal, ~0.05 DN. A pixel-integrated
+        // Gaussian makes the edge sampled at pixel centres exactly Φ(x/σ) (x from the edge, in
+        // px), so the 10–90 % width is 2 · 1.28155 · σ/p.
+        let (sigma, pitch) = (0.45, [0.15, 0.2]);
+        let psf = gaussian_psf(sigma, pitch);
+        let det = detector(Response::PhotonCounting, Polarity::Raw, 6e-8, 100.0);
+        for along_rows in [true, false] {
+            let (w, h) = (120, 100);
+            let e = expected_of(w, h, 1e12, |i, j| {
+                let left = if along_rows { i < w / 2 } else { j < h / 2 };
+                if left { 1e12 } else { 2e11 }
+            });
+            let unsharp = Unsharpness {
+                psf: Some(psf.clone()),
+                ..Default::default()
+            };
+            let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
+            // The profile across the edge, averaged along it.
+            let n = if along_rows { w } else { h };
+            let profile: Vec<f64> = (0..n)
+                .map(|t| {
+                    let line: Vec<f64> = (10..(if along_rows { h } else { w }) - 10)
+                        .map(|u| {
+                            let (i, j) = if along_rows { (t, u) } else { (u, t) };
+                            f64::from(r.pixels[j * w + i])
+                        })
+                        .collect();
+                    line.iter().sum::<f64>() / line.len() as f64
+                })
+                .collect();
+            let (hi, lo) = (profile[5], profile[n - 5]);
+            let measured = width_10_90(
+                &profile
+                    .iter()
+                    .map(|v| (v - lo) / (hi - lo))
+                    .collect::<Vec<_>>(),
+            );
+            // What the kernel predicts: the edge at n/2, y_t = Σ_{k < n/2 − t} w_k.
+            let k = if along_rows {
+                psf.kernel_x()
+            } else {
+                psf.kernel_y()
+            };
+            let half = (k.len() / 2) as isize;
+            let predicted: Vec<f64> = (0..n as isize)
+                .map(|t| {
+                    (-half..=half)
+                        .filter(|&d| d < n as isize / 2 - t)
+                        .map(|d| k[(d + half) as usize])
+                        .sum()
+                })
+                .collect();
+            let want = width_10_90(&predicted);
+            assert!(
+                (measured / want - 1.0).abs() < 0.01,
+                "{measured} px vs {want} px"
+            );
+            // Which is the continuous Gaussian edge 1 − Φ(x/σ) sampled at pixel centres, whose
+            // 10–90 % width is 2 · 1.28155 · σ/p (the linear interpolation between pixel
+            // centres adds 1–3 % here).
+            let sp = sigma / if along_rows { pitch[0] } else { pitch[1] };
+            for (t, &y) in predicted.iter().enumerate() {
+                let x = (t as f64 + 0.5 - (n / 2) as f64) / sp;
+                let phi = 0.5 * libm::erfc(-x / std::f64::consts::SQRT_2);
+                assert!(
+                    (y - (1.0 - phi)).abs() < 3e-6,
+                    "t {t}: {y} vs {}",
+                    1.0 - phi
+                );
+            }
+            let continuous = 2.0 * 1.281_551_565_545 * sp;
+            assert!(
+                (want / continuous - 1.0).abs() < 0.03,
+                "{want} vs {continuous}"
+            );
+            // Without the PSF the edge is one pixel.
+            let sharp = render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
+            assert_ne!(sharp.pixels, r.pixels);
+        }
+    }
+
+    #[test]
+    fn the_psf_correlates_the_quantum_noise_and_not_the_electronic_noise() {
+        // Quantum noise through the PSF: variance Q · Σwx² · Σwy², lag-1 correlation
+        // Σ w_k w_{k+1} / Σ w_k² along each axis (NPS ∝ MTF²). Electronic noise, added after
+        // the PSF, stays white.
+        let (w, h, q) = (320, 320, 1e4);
+        let psf = gaussian_psf(0.3, [0.3, 0.2]);
+        let det = detector(Response::PhotonCounting, Polarity::Raw, 1.0, 0.0);
+        let e = expected_of(w, h, q, |_, _| q);
+        let unsharp = Unsharpness {
+            psf: Some(psf.clone()),
+            ..Default::default()
+        };
+        let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
+        let v: Vec<f64> = r.pixels.iter().map(|&p| f64::from(p)).collect();
+        let sq = |k: &[f64]| k.iter().map(|x| x * x).sum::<f64>();
+        let lag = |k: &[f64]| k.windows(2).map(|p| p[0] * p[1]).sum::<f64>() / sq(k);
+        let signal_var = q * sq(psf.kernel_x()) * sq(psf.kernel_y());
+        let n = (w * h) as f64;
+        for (along_rows, k) in [(true, psf.kernel_x()), (false, psf.kernel_y())] {
+            let (rho, var) = lag1(&v, w, along_rows);
+            // Rounding adds 1/12 of uncorrelated variance.
+            let want = lag(k) * signal_var / (signal_var + 1.0 / 12.0);
+            assert!(
+                (rho - want).abs() < 4.0 * 2.0 / n.sqrt(),
+                "ρ {rho} vs {want}"
+            );
+            let want_var = signal_var + 1.0 / 12.0;
+            assert!(
+                (var / want_var - 1.0).abs() < 4.0 * 3.0 * (2.0 / n).sqrt(),
+                "{var}"
+            );
+            assert!(want > 0.3, "a real correlation: {want}");
+        }
+        // Electronic noise alone (no photons), with the PSF on: uncorrelated.
+        let dark = expected_of(w, h, q, |_, _| 0.0);
+        let mut det = det.clone();
+        det.offset = 1000.0;
+        let unsharp = Unsharpness {
+            psf: Some(psf),
+            electronic_noise_dn: 20.0,
+            ..Default::default()
+        };
+        let r = render_expected(&det, &dark, &unsharp, &key(), &ekey());
+        let v: Vec<f64> = r.pixels.iter().map(|&p| f64::from(p)).collect();
+        for along_rows in [true, false] {
+            let (rho, var) = lag1(&v, w, along_rows);
+            assert!(rho.abs() < 4.0 / n.sqrt(), "ρ {rho}");
+            assert!((var / (400.0 + 1.0 / 12.0) - 1.0).abs() < 4.0 * (2.0 / n).sqrt());
+        }
+    }
+
+    #[test]
+    fn scatter_lifts_a_uniform_field_by_the_ratio() {
+        let (w, h, q) = (200, 150, 5000.0);
+        let det = detector(Response::EnergyIntegrating, Polarity::Raw, 0.002, 0.0);
+        let e = expected_of(w, h, q * 60.0, |_, _| q);
+        let unsharp = Unsharpness {
+            scatter: Some(crate::response::Scatter::new(0.4, 30.0, [0.3, 0.3]).unwrap()),
+            ..Default::default()
+        };
+        let r = render_expected(&det, &e, &unsharp, &key(), &ekey());
+        let n = (w * h) as f64;
+        let mean = r.pixels.iter().map(|&p| f64::from(p)).sum::<f64>() / n;
+        // S = n · 60 keV, n ~ Poisson(1.4 · q): mean 0.002 · 60 · 7000 = 840 DN.
+        let sd = 0.002 * 60.0 * (1.4 * q).sqrt();
+        assert!((mean - 840.0).abs() < 4.0 * sd / n.sqrt(), "mean {mean}");
+    }
+
+    #[test]
+    fn every_option_gives_the_same_bytes_on_1_and_4_threads() {
+        with_scene(|beam, scene| {
+            let pitch = [0.8, 0.6];
+            let mtf = crate::response::PsfShape::Mtf {
+                table: vec![[0.0, 1.0], [0.2, 0.7], [0.5, 0.2], [0.7, 0.0]],
+            };
+            for polarity in polarities() {
+                for response in [Response::EnergyIntegrating, Response::PhotonCounting] {
+                    let det = det_12bit(beam, response, polarity, 20.0, 0.8);
+                    let e = expected(beam, &det, scene);
+                    for psf in [
+                        gaussian_psf(1.1, pitch),
+                        crate::response::Psf::new(mtf.clone(), pitch).unwrap(),
+                    ] {
+                        let unsharp = Unsharpness {
+                            scatter: Some(crate::response::Scatter::new(0.5, 6.0, pitch).unwrap()),
+                            psf: Some(psf),
+                            electronic_noise_dn: 3.0,
+                        };
+                        let images: Vec<Rendered> = [1, 4]
+                            .into_iter()
+                            .map(|threads| {
+                                rayon::ThreadPoolBuilder::new()
+                                    .num_threads(threads)
+                                    .build()
+                                    .unwrap()
+                                    .install(|| {
+                                        render_expected(&det, &e, &unsharp, &key(), &ekey())
+                                    })
+                            })
+                            .collect();
+                        assert_eq!(images[0], images[1], "{polarity:?} {response:?}");
+                        let plain =
+                            render_expected(&det, &e, &Unsharpness::default(), &key(), &ekey());
+                        assert_ne!(images[0].pixels, plain.pixels);
+                    }
+                }
+            }
+        });
     }
 }
