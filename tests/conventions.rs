@@ -38,6 +38,25 @@ fn noise_key_is_sha256_of_the_documented_label() {
 }
 
 #[test]
+fn electronic_noise_key_is_sha256_of_the_documented_label() {
+    states("`rsasim/electronic/v1/{seed}/{n}/{r}/{exposure}/{detector}`");
+    let key = NoiseKey::derive_electronic(42, 2, 7, "ap", "det_a");
+    let want: [u8; 32] = Sha256::digest(b"rsasim/electronic/v1/42/2/7/ap/det_a").into();
+    assert_eq!(key.as_bytes(), &want);
+}
+
+#[test]
+fn gaussian_focal_spots_use_the_documented_fwhm() {
+    states("σ = a/2.3548");
+    let nodes = rsasim::sampling::spot_nodes(rsasim::scenario::SpotProfile::Gaussian, 2.3548, 3);
+    // 3-point Gauss–Hermite: ±√3 σ with σ = 1.
+    assert!(
+        (nodes[2].0 - 3f64.sqrt() * 2.3548 / rsasim::sampling::focal_spot::FWHM_PER_SIGMA).abs()
+            < 1e-12
+    );
+}
+
+#[test]
 fn uniform_doubles_are_the_top_53_bits() {
     states("`(x >> 11) · 2⁻⁵³`");
     // The documented mapping, applied to the generator's own u64s, gives the library's uniforms.
