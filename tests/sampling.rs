@@ -152,29 +152,36 @@ phantoms = ["box"]
     rsasim::simulate::prepare_loaded(loaded).expect("prepares")
 }
 
-/// Centroid errors (px) of the beads' absorption `1 − Q/S_open` in the expected image.
-fn absorption_centroid_errors(plan: &rsasim::simulate::Plan) -> Vec<f64> {
+/// The expected image of run 0's first exposure on its first detector, sampled as the scenario
+/// says.
+fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected {
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
-    let exposure = &run.exposures[0];
     let parts = rsasim::attenuation::parts(
         &plan.loaded.scenario,
         setup,
         &plan.models,
         &[None],
         run,
-        exposure,
+        &run.exposures[0],
     )
     .unwrap();
     let det = &run.detectors[0];
-    let frame = det.frame();
-    let source = run.source_of(det);
+    let (frame, source) = (det.frame(), run.source_of(det));
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    let ex = rsasim::attenuation::sampled::expected(
+    rsasim::attenuation::sampled::expected(
         setup, &parts, &frame, source, &beam, &detector, &sampling,
-    );
+    )
+}
+
+/// Centroid errors (px) of the beads' absorption `1 − Q/S_open` in the expected image.
+fn absorption_centroid_errors(plan: &rsasim::simulate::Plan) -> Vec<f64> {
+    let ex = sampled_expected(plan);
+    let run = &plan.runs[0];
+    let det = &run.detectors[0];
+    let (frame, source) = (det.frame(), run.source_of(det));
     let w = frame.pixels[0] as i64;
     let mut errors = Vec::new();
     for m in &run.phantoms[0].markers {
@@ -211,6 +218,7 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     // pixel_samples = 1 and no spot: sampled::expected is response::expected bit for bit (the
     // sampled path adds each value once with weight 1).
     let plan = bead_plate("");
+    let sampled = sampled_expected(&plan);
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
     let parts = rsasim::attenuation::parts(
@@ -226,10 +234,6 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     let (frame, source) = (det.frame(), run.source_of(det));
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
-    let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    let sampled = rsasim::attenuation::sampled::expected(
-        setup, &parts, &frame, source, &beam, &detector, &sampling,
-    );
     let shadows: Vec<_> = parts
         .iter()
         .map(|p| rsasim::trace::path_lengths(&frame, source, &p.object))
