@@ -262,3 +262,20 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     let sharp = rsasim::response::expected(&beam, &detector, &scene);
     assert_eq!(sampled, sharp);
 }
+
+#[test]
+fn many_rays_per_pixel_are_a_warning_about_cost() {
+    let plan = bead_plate("pixel_samples = 8\nfocal_spot = { size_mm = 1.0, samples = 5 }");
+    let text: Vec<String> = plan.warnings.iter().map(|w| format!("{w:?}")).collect();
+    assert!(
+        text.iter().any(|w| w.contains("1600 rays per pixel")),
+        "{text:?}"
+    );
+    let few = bead_plate("pixel_samples = 4\nfocal_spot = { size_mm = 1.0, samples = 3 }");
+    assert!(
+        !few.warnings
+            .iter()
+            .any(|w| format!("{w:?}").contains("rays per pixel")),
+        "144 rays per pixel need no warning"
+    );
+}

@@ -11,6 +11,10 @@ use crate::material;
 /// the Poisson sampler's counts leave the exactly representable range of its arithmetic.
 const MAX_PHOTONS_PER_PIXEL: f64 = 1e12;
 
+/// Rays per pixel (pixel samples × focal-spot sub-sources) above which `validate` warns about
+/// the cost.
+const RAYS_PER_PIXEL_WARNING: u64 = 256;
+
 /// Most rays per pixel side (`pixel_samples`) and sub-sources per focal-spot axis (`samples`).
 pub const MAX_SAMPLES_PER_SIDE: u32 = 16;
 
@@ -218,6 +222,15 @@ impl Check<'_> {
         }
         let Some(f) = &im.focal_spot else { return };
         let fp = ip.key("focal_spot");
+        let s = u64::from(im.samples_per_side());
+        let k = u64::from(f.samples);
+        let rays = s * s * k * k;
+        if rays > RAYS_PER_PIXEL_WARNING && k <= u64::from(MAX_SAMPLES_PER_SIDE) {
+            self.warn(
+                fp.key("samples"),
+                format!("{rays} rays per pixel ({s}×{s} pixel samples × {k}×{k} sub-sources): each image costs about {rays} times one ray per pixel"),
+            );
+        }
         if !(f.size_mm.is_finite() && f.size_mm > 0.0 && f.size_mm <= 10.0) {
             self.err(
                 fp.key("size_mm"),
