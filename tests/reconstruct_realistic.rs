@@ -124,7 +124,14 @@ fn tally(
             }
             let metal = metal_mask(&img, 400);
             let found = find_beads_by(&img, radius_px, &metal, centre);
-            for m in image.markers.iter().filter(|m| m.inside) {
+            // Box beads of the plates facing this beamline only (F1, C1 for det1; F2, C2 for
+            // det2): a plate seen edge-on images its beads as overlapping lines.
+            let beamline = image.detector.chars().last();
+            let facing = |m: &&rsasim::output::truth::ProjectedMarker| {
+                m.phantom != "box"
+                    || m.id.split('-').next().and_then(|p| p.chars().last()) == beamline
+            };
+            for m in image.markers.iter().filter(|m| m.inside).filter(facing) {
                 let at = DVec2::from(m.pixel);
                 let nearest = found
                     .iter()
@@ -165,27 +172,31 @@ fn mean_p95(v: &[f64]) -> (f64, f64) {
 fn beads_are_found_at_every_exposure_sharp_and_blurred_and_never_over_the_metal() {
     let tmp = tempfile::tempdir().unwrap();
     let out = simulate(tmp.path(), "radiograph");
-    // Box beads (1.5 mm at magnification 1.32–1.45 on 0.5 mm pixels): radius about 2.1 px.
+    // Box beads (1.5 mm at magnification 1.32–1.45 on 0.5 mm pixels): radius about 2.1 px. The
+    // images sample one ray per pixel centre, so the image itself pixel-locks a bead's centre;
+    // a blur applied after that sampling (as here) cannot undo it and widens the bead beyond
+    // the window, so the blurred bounds are looser, not tighter.
+    let mut failures = Vec::new();
     for (factor, blur, rate_min, mean_max, p95_max) in [
-        (1.0, 0.0, 0.99, 0.15, 0.30),
-        (0.25, 0.0, 0.99, 0.15, 0.30),
-        (0.0625, 0.0, 0.97, 0.20, 0.40),
-        (1.0, 1.0, 0.99, 0.15, 0.30),
-        (0.0625, 1.0, 0.97, 0.20, 0.40),
+        (1.0, 0.0, 0.98, 0.08, 0.18),
+        (0.25, 0.0, 0.98, 0.08, 0.18),
+        (0.0625, 0.0, 0.97, 0.10, 0.20),
+        (1.0, 1.0, 0.95, 0.15, 0.32),
+        (0.0625, 1.0, 0.95, 0.15, 0.32),
     ] {
-        let t = tally(&out, factor, "calibration", blur, 2.1, Centre::Centroid);
+        let t = tally(&out, factor, "calibration", blur, 2.1, Centre::default());
         let (mean, p95) = mean_p95(&t.errors_px);
         let rate = t.found as f64 / t.beads as f64;
         eprintln!(
             "box, exposure ×{factor}, blur σ {blur} px: {}/{} found ({rate:.3}), centre error mean {mean:.3} px, p95 {p95:.3} px",
             t.found, t.beads
         );
-        assert!(t.beads > 150);
-        assert!(rate >= rate_min, "×{factor} σ {blur}: rate {rate}");
-        assert!(
-            mean <= mean_max && p95 <= p95_max,
-            "×{factor} σ {blur}: {mean} / {p95}"
-        );
+        if t.beads < 150 || rate < rate_min || mean > mean_max || p95 > p95_max {
+            failures.push(format!(
+                "×{factor} σ {blur}: {t_beads} beads, rate {rate}, mean {mean}, p95 {p95}",
+                t_beads = t.beads
+            ));
+        }
     }
     // The intensity centroid against a Gaussian fit, on the same detections.
     for (factor, blur) in [(1.0, 0.0), (0.0625, 0.0), (1.0, 1.0), (0.0625, 1.0)] {
@@ -196,11 +207,13 @@ fn beads_are_found_at_every_exposure_sharp_and_blurred_and_never_over_the_metal(
         eprintln!(
             "×{factor} σ {blur}: centroid mean {cm:.3} p95 {cp:.3}; Gaussian fit mean {gm:.3} p95 {gp:.3} px"
         );
-        assert!(
-            cm <= gm * 1.05,
-            "the default centre is not the more accurate one: {cm} vs {gm}"
-        );
+        if gm > cm * 1.05 || Centre::default() != Centre::GaussianFit {
+            failures.push(format!(
+                "×{factor} σ {blur}: the default centre is not the more accurate one: {gm} vs {cm}"
+            ));
+        }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
     // Model beads over bone-free soft tissue, and K7 over the component on beamline 1: no
     // detection ever sits on an occluded bead.
     for factor in [1.0, 0.0625] {
@@ -210,7 +223,7 @@ fn beads_are_found_at_every_exposure_sharp_and_blurred_and_never_over_the_metal(
             "model",
             0.0,
             1.5 * 1.385 / 0.5 / 2.0,
-            Centre::Centroid,
+            Centre::default(),
         );
         eprintln!(
             "model, exposure ×{factor}: {}/{} found, {} occluded, {} detections on them",
@@ -294,6 +307,54 @@ fn reconstruct_measures_radiographs_and_raw_images_and_reports_occluded_beads() 
                     }
                 }
             }
+        }
+    }
+}
+
+/// The detection table of the README: per exposure level of an existing radiograph-polarity
+/// output (`RSASIM_MEASURE_OUT`, e.g. a run of `scenarios/biplanar_realistic.toml`), the box and
+/// model beads' detection rate and centre error against the truth, with the beads' radius in
+/// pixels from `RSASIM_MEASURE_RADIUS_PX` (default 2.32: 1 mm at magnification 1.385 on
+/// 0.2986 mm pixels) and an optional blur `RSASIM_MEASURE_BLUR_PX`. Run with
+/// `cargo test --release --test reconstruct_realistic -- --ignored --nocapture`.
+#[test]
+#[ignore = "measures an existing output named by RSASIM_MEASURE_OUT"]
+fn measure_detection_on_an_output() {
+    let Ok(out) = std::env::var("RSASIM_MEASURE_OUT") else {
+        eprintln!("set RSASIM_MEASURE_OUT to an attenuation-mode output folder");
+        return;
+    };
+    let num = |name: &str, default: f64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let radius = num("RSASIM_MEASURE_RADIUS_PX", 2.32);
+    let blur = num("RSASIM_MEASURE_BLUR_PX", 0.0);
+    let out = PathBuf::from(out);
+    let mut factors: Vec<f64> = truths(&out)
+        .iter()
+        .filter_map(|(_, t)| t.run.exposure_factor)
+        .collect();
+    factors.sort_by(|a, b| b.total_cmp(a));
+    factors.dedup();
+    println!(
+        "| exposure | image | found | rate | centre error mean (px) | p95 (px) | occluded | detections on them |"
+    );
+    println!("|---:|---|---:|---:|---:|---:|---:|---:|");
+    for factor in factors {
+        for exposure in ["calibration", "model"] {
+            let t = tally(&out, factor, exposure, blur, radius, Centre::default());
+            let (mean, p95) = mean_p95(&t.errors_px);
+            println!(
+                "| ×{factor} | {exposure} | {}/{} | {:.4} | {mean:.3} | {p95:.3} | {} | {} |",
+                t.found,
+                t.beads,
+                t.found as f64 / t.beads.max(1) as f64,
+                t.occluded,
+                t.on_occluded
+            );
         }
     }
 }

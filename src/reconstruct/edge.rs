@@ -2,9 +2,12 @@
 //! focal-spot penumbra and detector blur spread it over a few pixels.
 //!
 //! 1. **Segmentation**: the implant is far denser than anything around it. Its shadow is the
-//!    largest 8-connected component of pixels whose attenuation is at least half-way between the
-//!    image's median and its 99th percentile (the implant's plateau). The component only seeds
-//!    the edge search and the coarse pose search; the edge's position comes from step 2.
+//!    largest 8-connected component of pixels whose attenuation is at least half-way between its
+//!    surroundings and the implant's plateau (the image's 99.5th percentile). The surroundings
+//!    are first the image's median, then twice the median of the pixels within [`RING_PX`] of
+//!    the component found (bone next to the implant merges with it at the first level, never at
+//!    the second). The component only seeds the edge search and the coarse pose search; the
+//!    edge's position comes from step 2.
 //! 2. **Edge points**: for every pair of horizontally or vertically neighbouring pixels of which
 //!    exactly one is in the shadow, and whose row or column crosses the edge within 45° of its
 //!    normal (the transmission's Sobel gradient), the profile along that row or column is read in
@@ -23,7 +26,7 @@ use glam::DVec2;
 
 use super::contour::Outline;
 use super::density::Density;
-use super::detect::components;
+use super::detect::{Blob, components};
 
 /// Profile samples nearer than this to the pair (pixels) are in the graded edge.
 pub const NEAR_PX: usize = 3;
@@ -41,19 +44,7 @@ pub fn graded_outline(img: &Density) -> Option<Outline> {
     if w < 2 || h < 2 {
         return None;
     }
-    let mut sorted = img.values.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let plateau = sorted[(sorted.len() * 99) / 100];
-    if !(plateau > median) {
-        return None;
-    }
-    let level = 0.5 * (median + plateau);
-    let dense: Vec<u16> = img.values.iter().map(|&v| u16::from(v >= level)).collect();
-    let (labels, blobs) = components(&dense, w, 1);
-    let (index, largest) = blobs.iter().enumerate().max_by_key(|(_, b)| b.area)?;
-    let id = index as u32 + 1;
-    let mask: Vec<bool> = labels.iter().map(|&l| l == id).collect();
+    let (mask, largest) = segment(img)?;
     let [i0, j0, i1, j1] = largest.bbox.map(|v| v as usize);
     let mut edge_points = Vec::new();
     for j in j0.saturating_sub(1)..=(j1 + 1).min(h - 1) {
@@ -89,6 +80,78 @@ pub fn graded_outline(img: &Density) -> Option<Outline> {
         centroid: largest.centroid,
         edge_points,
     })
+}
+
+/// Pixels within this many pixels of the shadow (outside it) give its surroundings' level.
+const RING_PX: usize = 8;
+
+/// The implant's shadow (module docs, step 1) and its component.
+fn segment(img: &Density) -> Option<(Vec<bool>, Blob)> {
+    let (w, h) = (img.width, img.height);
+    let mut sorted = img.values.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let plateau = sorted[(sorted.len() * 995) / 1000];
+    if !(plateau > median) {
+        return None;
+    }
+    let largest = |level: f64| -> Option<(Vec<bool>, Blob)> {
+        let dense: Vec<u16> = img.values.iter().map(|&v| u16::from(v >= level)).collect();
+        let (labels, blobs) = components(&dense, w, 1);
+        let (index, blob) = blobs.iter().enumerate().max_by_key(|(_, b)| b.area)?;
+        let id = index as u32 + 1;
+        Some((labels.iter().map(|&l| l == id).collect(), blob.clone()))
+    };
+    let mut found = largest(0.5 * (median + plateau))?;
+    for _ in 0..2 {
+        let near = dilate(&found.0, w, h, RING_PX);
+        let mut ring: Vec<f64> = (0..w * h)
+            .filter(|&k| near[k] && !found.0[k])
+            .map(|k| img.values[k])
+            .collect();
+        if ring.is_empty() {
+            break;
+        }
+        let mid = ring.len() / 2;
+        let surroundings = *ring.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if !(plateau > surroundings) {
+            break;
+        }
+        found = largest(0.5 * (surroundings + plateau))?;
+    }
+    Some(found)
+}
+
+/// `mask` dilated by a square of half-size `r` (separable running counts).
+fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let pass = |src: &[bool], horizontal: bool| -> Vec<bool> {
+        let (n, lines) = if horizontal { (w, h) } else { (h, w) };
+        let at = |line: usize, k: usize| {
+            if horizontal {
+                line * w + k
+            } else {
+                k * w + line
+            }
+        };
+        let mut out = vec![false; w * h];
+        for line in 0..lines {
+            let mut count = 0usize;
+            for k in 0..(r).min(n) {
+                count += usize::from(src[at(line, k)]);
+            }
+            for k in 0..n {
+                if k + r < n {
+                    count += usize::from(src[at(line, k + r)]);
+                }
+                if k > r {
+                    count -= usize::from(src[at(line, k - r - 1)]);
+                }
+                out[at(line, k)] = count > 0;
+            }
+        }
+        out
+    };
+    pass(&pass(mask, true), false)
 }
 
 /// Whether the line through the neighbouring pixels (i0, j0) and (i1, j1) runs within 45° of
@@ -283,5 +346,43 @@ mod tests {
             assert!((r - expected).abs() < 0.03, "σ {sigma}: {r} vs {expected}");
             assert!(sd < 0.05 && n > 140.0, "σ {sigma}: SD {sd} over {n} points");
         }
+    }
+
+    #[test]
+    fn bone_touching_the_implant_is_not_its_shadow() {
+        // Mostly air (the image's median 0), a leg of attenuation 2.5, a bone of 4.0 ending on
+        // the implant (a clipped disc of attenuation 7, radius 20 px): a level half-way between
+        // the median and the plateau would merge the bone; the surroundings' level does not.
+        let (w, h) = (160, 150);
+        let c = DVec2::new(80.4, 60.7);
+        let values: Vec<f64> = (0..w * h)
+            .map(|k| {
+                let p = DVec2::new((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
+                if (p - c).length() <= 20.0 {
+                    7.0
+                } else if (p.x - 80.0).abs() < 12.0 && p.y > 60.0 && p.y < 140.0 {
+                    4.0
+                } else if (p.x - 80.0).abs() < 30.0 {
+                    2.5
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let img = Density {
+            width: w,
+            height: h,
+            clipped: values.iter().map(|&v| v >= 7.0).collect(),
+            values,
+        };
+        let o = graded_outline(&img).unwrap();
+        let disc_area = std::f64::consts::PI * 400.0;
+        assert!(
+            (o.area as f64 - disc_area).abs() < 0.03 * disc_area,
+            "{}",
+            o.area
+        );
+        let r = mean_radius(&o, c);
+        assert!((r - 20.0).abs() < 0.1, "{r}");
     }
 }
