@@ -15,7 +15,7 @@ use common::{rsasim, truths};
 use glam::DVec2;
 use rsasim::output::measured::Measured;
 use rsasim::reconstruct::beads::{Centre, find_beads_by, metal_mask};
-use rsasim::reconstruct::density::{Density, Reading, density};
+use rsasim::reconstruct::density::{Reading, density};
 
 /// The scene; `POLARITY` is replaced by the polarity under test.
 const SCENARIO: &str = include_str!("scenarios/realistic_small.toml");
@@ -41,44 +41,6 @@ fn simulate(dir: &Path, polarity: &str) -> PathBuf {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     out
-}
-
-/// A separable Gaussian blur of `sigma_px` applied in transmission (where detector blur acts),
-/// clamped at the borders.
-fn blur_transmission(img: &Density, sigma_px: f64) -> Density {
-    let (w, h) = (img.width, img.height);
-    let t: Vec<f64> = img.values.iter().map(|v| libm::exp(-v)).collect();
-    let half = (4.0 * sigma_px).ceil() as i64;
-    let kernel: Vec<f64> = (-half..=half)
-        .map(|x| libm::exp(-((x * x) as f64) / (2.0 * sigma_px * sigma_px)))
-        .collect();
-    let norm: f64 = kernel.iter().sum();
-    let pass = |src: &[f64], horizontal: bool| -> Vec<f64> {
-        let mut out = vec![0.0; w * h];
-        for j in 0..h {
-            for i in 0..w {
-                let mut acc = 0.0;
-                for (n, k) in kernel.iter().enumerate() {
-                    let d = n as i64 - half;
-                    let (x, y) = if horizontal {
-                        ((i as i64 + d).clamp(0, w as i64 - 1), j as i64)
-                    } else {
-                        (i as i64, (j as i64 + d).clamp(0, h as i64 - 1))
-                    };
-                    acc += k * src[y as usize * w + x as usize];
-                }
-                out[j * w + i] = acc / norm;
-            }
-        }
-        out
-    };
-    let blurred = pass(&pass(&t, true), false);
-    Density {
-        width: w,
-        height: h,
-        values: blurred.iter().map(|v| -libm::log(*v)).collect(),
-        clipped: img.clipped.clone(),
-    }
 }
 
 /// Per image of `exposure`: the truth's projected beads (inside, not occluded) and what the
@@ -120,7 +82,7 @@ fn tally(
             };
             let mut img = density(&px, w as usize, reading);
             if blur_px > 0.0 {
-                img = blur_transmission(&img, blur_px);
+                img = img.blurred(blur_px);
             }
             let metal = metal_mask(&img, 400);
             let found = find_beads_by(&img, radius_px, &metal, centre);

@@ -251,7 +251,7 @@ mod tests {
     /// attenuation 2, area-sampled, optionally blurred by a Gaussian of `sigma` px (in
     /// transmission, where blur acts).
     pub(crate) fn disc(w: usize, h: usize, c: DVec2, r: f64, sigma: f64) -> Density {
-        let mut t = vec![0.0; w * h];
+        let mut values = vec![0.0; w * h];
         for j in 0..h {
             for i in 0..w {
                 let mut inside = 0;
@@ -267,49 +267,20 @@ mod tests {
                     }
                 }
                 let f = f64::from(inside) / 36.0;
-                t[j * w + i] = libm::exp(-2.0) * (1.0 - f) + libm::exp(-9.0) * f;
+                values[j * w + i] = -libm::log(libm::exp(-2.0) * (1.0 - f) + libm::exp(-9.0) * f);
             }
         }
-        let t = if sigma > 0.0 {
-            blur(&t, w, h, sigma)
-        } else {
-            t
-        };
-        Density {
+        let sharp = Density {
             width: w,
             height: h,
-            values: t.iter().map(|&v| -libm::log(v)).collect(),
+            values,
             clipped: vec![false; w * h],
-        }
-    }
-
-    /// A separable Gaussian blur, clamped at the borders.
-    pub(crate) fn blur(t: &[f64], w: usize, h: usize, sigma: f64) -> Vec<f64> {
-        let half = (4.0 * sigma).ceil() as i64;
-        let k: Vec<f64> = (-half..=half)
-            .map(|x| libm::exp(-(x * x) as f64 / (2.0 * sigma * sigma)))
-            .collect();
-        let norm: f64 = k.iter().sum();
-        let pass = |src: &[f64], horizontal: bool| -> Vec<f64> {
-            let mut out = vec![0.0; w * h];
-            for j in 0..h {
-                for i in 0..w {
-                    let mut acc = 0.0;
-                    for (n, kv) in k.iter().enumerate() {
-                        let d = n as i64 - half;
-                        let (x, y) = if horizontal {
-                            ((i as i64 + d).clamp(0, w as i64 - 1), j as i64)
-                        } else {
-                            (i as i64, (j as i64 + d).clamp(0, h as i64 - 1))
-                        };
-                        acc += kv * src[y as usize * w + x as usize];
-                    }
-                    out[j * w + i] = acc / norm;
-                }
-            }
-            out
         };
-        pass(&pass(t, true), false)
+        if sigma > 0.0 {
+            sharp.blurred(sigma)
+        } else {
+            sharp
+        }
     }
 
     fn mean_radius(o: &Outline, c: DVec2) -> f64 {
