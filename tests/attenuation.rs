@@ -260,7 +260,7 @@ fn a_solid_poking_out_of_the_one_it_is_inside_is_an_error_naming_both() {
 }
 
 #[test]
-fn a_user_spectrum_travels_with_the_output_and_reconstruct_says_it_reads_binary_images_only() {
+fn a_user_spectrum_travels_with_the_output_and_reconstruct_needs_a_calibration_box() {
     let tmp = tempfile::tempdir().unwrap();
     std::fs::write(
         tmp.path().join("measured.tsv"),
@@ -282,11 +282,12 @@ fn a_user_spectrum_travels_with_the_output_and_reconstruct_says_it_reads_binary_
         &[],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    // The reference program refuses clearly instead of measuring nonsense.
+    // The reference program reads attenuation images (tests/reconstruct_realistic.rs); with no
+    // calibration box it says so and reconstructs nothing.
     let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("attenuation mode"), "{err}");
+    assert!(err.contains("no calibration box"), "{err}");
 }
 
 #[test]

@@ -112,6 +112,20 @@ pub struct FitQuality {
     /// Guideline limits exceeded, e.g. `"ME > 0.35 mm"`, `"CN > 150"`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub flags: Vec<String>,
+    /// Beads the software did not measure on an image because their image falls on the metal
+    /// shadow of an implant (attenuation-mode images), each with the detector it is hidden on.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub occluded: Vec<OccludedBead>,
+}
+
+/// A bead hidden on one image.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OccludedBead {
+    /// Bead id, as in the phantom's bead table.
+    pub bead: String,
+    /// Id of the detector whose image hides it.
+    pub detector: String,
 }
 
 /// A reconstructed pose; `rotation` (three rows, columns = local axes in the box frame) may be

@@ -3,10 +3,13 @@
 //! It sees only what an operator has: the images, the nominal set-up (the scenario without its
 //! random draws), the box bead table and the model files in `OUT/phantoms/`. It never reads the
 //! ground truth: nothing in this module refers to the truth records or their files.
+pub mod beads;
 pub mod calibrate;
 pub mod contour;
 pub mod correspond;
+pub mod density;
 pub mod detect;
+pub mod edge;
 pub mod exam;
 pub mod model;
 pub mod model_outline;
@@ -137,7 +140,7 @@ fn model_label(setup: &exam::Setup, model_method: Option<ModelMethod>) -> &'stat
         .nominal
         .phantoms
         .iter()
-        .filter(|p| p.kind != "calibration_box")
+        .filter(|p| p.kind != "calibration_box" && pipeline::fixed_to(setup, &p.id).is_none())
         .map(|p| {
             let has_beads = setup.beads.get(&p.id).is_some_and(|b| !b.is_empty());
             ModelMethod::for_model(None, has_beads).name()
@@ -186,15 +189,6 @@ fn ours_or_absent(file: &Path) -> bool {
 /// written.
 pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnostic>> {
     let setup = exam::load_setup(out)?;
-    if setup.scenario.imaging.is_attenuation() {
-        return Err(vec![
-            Diagnostic::file_error(
-                &out.join("scenario.toml"),
-                "this output is in attenuation mode; the reference program reads binary-mode images only (it finds beads and outlines at I_max)",
-            )
-            .with_help("run it on a binary-mode output, or score your own RSA software on these images with `rsasim evaluate`"),
-        ]);
-    }
     let runs = exam::run_folders(out)?;
     let label = model_label(&setup, options.model_method);
     let name = options

@@ -5,12 +5,15 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use glam::{DVec2, DVec3};
+use glam::{DMat3, DVec2, DVec3};
 
+use super::beads::{find_beads, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
+use super::density::{Reading, density};
 use super::detect::{Blob, blobs};
+use super::edge::graded_outline;
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
@@ -21,6 +24,7 @@ use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
 use crate::output::measured::{
     FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
+    OccludedBead,
 };
 use crate::scenario::PlateRole;
 
@@ -36,6 +40,8 @@ struct Calibrated {
     beamline: Beamline,
     rms_px: f64,
     beads: usize,
+    /// Box beads whose predicted image falls on the metal shadow (attenuation mode).
+    occluded: Vec<String>,
 }
 
 /// The methods of one `reconstruct` call.
@@ -176,7 +182,6 @@ pub fn reconstruct_run(
     let mut beamlines: BTreeMap<String, (Calibrated, &DetectorState)> = BTreeMap::new();
     for det in &nominal.detectors {
         let (w, _h, pixels) = read_image(dir, &format!("{}-{}", exposure.id, det.id))?;
-        let found = blobs(&pixels, w as usize, det.i_max());
         let source = nominal.source_of(det);
         let frame = det.frame();
         let preds: Vec<Prediction> = box_beads
@@ -205,7 +210,8 @@ pub fn reconstruct_run(
             })
             .collect();
         let fit = |matches: &[Match]| fit_beamline(method, matches, box_beads, &plates, &uses, det);
-        match calibrate_beamline(&facing, &preds, &found, box_beads, det, fit) {
+        let image = BeadImage::read(setup, det, &pixels, w as usize, mean_radius_px(&preds));
+        match calibrate_beamline(&facing, &preds, &image, box_beads, det, fit) {
             Ok(c) => {
                 beamlines.insert(det.id.clone(), (c, det));
             }
@@ -216,6 +222,14 @@ pub fn reconstruct_run(
         let quality = Some(FitQuality {
             beads_used: Some(c.beads),
             reprojection_rms_px: Some(c.rms_px),
+            occluded: c
+                .occluded
+                .iter()
+                .map(|bead| OccludedBead {
+                    bead: bead.clone(),
+                    detector: id.clone(),
+                })
+                .collect(),
             ..Default::default()
         });
         if !measured.sources.iter().any(|s| s.id == det.source) {
@@ -234,8 +248,10 @@ pub fn reconstruct_run(
         });
     }
 
+    // Found models' poses by id, for the phantoms fixed to them.
+    let mut poses: BTreeMap<String, Pose> = BTreeMap::new();
     for phantom in &nominal.phantoms {
-        if phantom.kind == "calibration_box" {
+        if phantom.kind == "calibration_box" || fixed_to(setup, &phantom.id).is_some() {
             continue;
         }
         let Some(exposure) = setup
@@ -255,16 +271,28 @@ pub fn reconstruct_run(
         models_tried += 1;
         let found = match model_method {
             ModelMethod::Markers => match beads {
-                Some(beads) => {
-                    find_model(dir, &exposure.id, &beamlines, beads, phantom.position_mm)
-                }
+                Some(beads) => find_model(
+                    setup,
+                    dir,
+                    &exposure.id,
+                    &beamlines,
+                    beads,
+                    phantom.position_mm,
+                ),
                 None => Err(
                     "the model has no beads; use --model-method silhouette for model-based RSA"
                         .into(),
                 ),
             },
             ModelMethod::Silhouette => match outlines.get(&phantom.id) {
-                Some(model) => find_model_by_outline(dir, &exposure.id, &beamlines, model, phantom.pose()),
+                Some(model) => find_model_by_outline(
+                    setup,
+                    dir,
+                    &exposure.id,
+                    &beamlines,
+                    model,
+                    phantom.pose(),
+                ),
                 None => Err(
                     "the model has no mesh; model-based RSA fits a mesh's outline (use --model-method markers)"
                         .into(),
@@ -274,6 +302,15 @@ pub fn reconstruct_run(
         match found {
             Ok(pose) => {
                 models_found += 1;
+                if let Some(rows) = pose.rotation {
+                    poses.insert(
+                        phantom.id.clone(),
+                        Pose {
+                            position_mm: DVec3::from(pose.position_mm),
+                            rotation: DMat3::from_cols_array_2d(&rows).transpose(),
+                        },
+                    );
+                }
                 measured.phantoms.push(MeasuredPose {
                     id: phantom.id.clone(),
                     ..pose
@@ -286,12 +323,57 @@ pub fn reconstruct_run(
             )),
         }
     }
+    measured.phantoms.extend(fixed_poses(setup, &mut poses));
     Ok(RunResult {
         measured,
         failures,
         models_tried,
         models_found,
     })
+}
+
+/// The phantom `id` is fixed to (`fixed_to` in the scenario), with its pose in that phantom's
+/// frame; `None` for a phantom that moves on its own.
+pub(crate) fn fixed_to(setup: &Setup, id: &str) -> Option<(String, Pose)> {
+    let p = setup.scenario.phantoms.iter().find(|p| p.id == id)?;
+    let parent = p.fixed_to.clone()?;
+    Some((
+        parent,
+        Pose::from_position_euler_deg(p.position_mm, p.rotation_deg),
+    ))
+}
+
+/// The poses of the phantoms fixed to a found model (directly or through a chain): the model's
+/// measured pose composed with their fixed pose in its frame, as the scenario states it. They
+/// are added to `poses` and returned without a quality (nothing was fitted for them).
+fn fixed_poses(setup: &Setup, poses: &mut BTreeMap<String, Pose>) -> Vec<MeasuredPose> {
+    let mut out = Vec::new();
+    for _ in 0..setup.scenario.phantoms.len() {
+        let before = out.len();
+        for p in &setup.scenario.phantoms {
+            if poses.contains_key(&p.id) {
+                continue;
+            }
+            let Some((parent, offset)) = fixed_to(setup, &p.id) else {
+                continue;
+            };
+            if let Some(parent_pose) = poses.get(&parent).copied() {
+                let pose = parent_pose.compose(&offset);
+                poses.insert(p.id.clone(), pose);
+                out.push(MeasuredPose {
+                    id: p.id.clone(),
+                    position_mm: pose.position_mm.to_array(),
+                    rotation: Some(rotation_rows(&pose.rotation)),
+                    markers: vec![],
+                    quality: None,
+                });
+            }
+        }
+        if out.len() == before {
+            break;
+        }
+    }
+    out
 }
 
 /// The predicted blob of a bead: projected centre and expected area.
@@ -370,11 +452,12 @@ fn fit_beamline(
 fn calibrate_beamline(
     first: &[Prediction],
     preds: &[Prediction],
-    found: &[Blob],
+    image: &BeadImage,
     beads: &[TableBead],
     det: &DetectorState,
     fit: impl Fn(&[Match]) -> Result<(Refined, usize), String>,
 ) -> Result<Calibrated, String> {
+    let found = &image.blobs;
     let mut matches = match_beads(first, found, SEARCH_PX);
     let mut result = None;
     for _ in 0..3 {
@@ -397,6 +480,11 @@ fn calibrate_beamline(
             beamline: refined.beamline,
             rms_px: refined.rms_px,
             beads: beads_used,
+            occluded: repredicted
+                .iter()
+                .filter(|p| image.occludes(p.uv, (p.expected_area / std::f64::consts::PI).sqrt()))
+                .map(|p| beads[p.index].id.clone())
+                .collect(),
         });
         let next = match_near(&repredicted, found, 2.5);
         if next.len() == matches.len()
@@ -412,9 +500,67 @@ fn calibrate_beamline(
     result.ok_or_else(|| "no calibration".into())
 }
 
+/// One image's bead candidates and, in attenuation mode, its metal shadow.
+struct BeadImage {
+    /// Bead candidates: blobs at I_max (binary mode) or [`find_beads`]'s beads.
+    blobs: Vec<Blob>,
+    /// The metal shadow ([`metal_mask`]), row-major; empty in binary mode.
+    metal: Vec<bool>,
+    /// Image width, pixels.
+    width: usize,
+}
+
+impl BeadImage {
+    /// The candidates of one image of detector `det` for beads of about `radius_px` pixels.
+    fn read(
+        setup: &Setup,
+        det: &DetectorState,
+        pixels: &[u16],
+        width: usize,
+        radius_px: f64,
+    ) -> BeadImage {
+        let imaging = &setup.scenario.imaging;
+        if !imaging.is_attenuation() {
+            return BeadImage {
+                blobs: blobs(pixels, width, det.i_max()),
+                metal: Vec::new(),
+                width,
+            };
+        }
+        let img = density(pixels, width, Reading::of(imaging, det.i_max()));
+        let bead_area = std::f64::consts::PI * radius_px * radius_px;
+        let metal = metal_mask(&img, (METAL_BEAD_AREAS * bead_area).max(50.0) as usize);
+        BeadImage {
+            blobs: find_beads(&img, radius_px, &metal),
+            metal,
+            width,
+        }
+    }
+
+    /// Whether a bead of `radius_px` pixels imaged at `uv` touches the metal shadow (within one
+    /// pixel): its centre cannot be measured there.
+    fn occludes(&self, uv: DVec2, radius_px: f64) -> bool {
+        !self.metal.is_empty() && touches(&self.metal, self.width, uv, radius_px + 1.0)
+    }
+}
+
+/// A clipped component is metal when it is at least this many beads' areas.
+const METAL_BEAD_AREAS: f64 = 20.0;
+
+/// The radius (pixels) of the mean expected bead area of `preds` (1 px when there are none).
+fn mean_radius_px(preds: &[Prediction]) -> f64 {
+    if preds.is_empty() {
+        return 1.0;
+    }
+    let area = preds.iter().map(|p| p.expected_area).sum::<f64>() / preds.len() as f64;
+    (area / std::f64::consts::PI).sqrt()
+}
+
 /// Marker-based RSA of one model from its bead-sized blobs in every calibrated view (see
-/// [`super::model`]).
+/// [`super::model`]). In attenuation mode, the beads whose fitted image falls on the metal
+/// shadow of a view are reported occluded there.
 fn find_model(
+    setup: &Setup,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
@@ -422,6 +568,7 @@ fn find_model(
     nominal_position_mm: DVec3,
 ) -> Result<MeasuredPose, String> {
     let mut views = Vec::new();
+    let mut images = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
@@ -432,8 +579,10 @@ fn find_model(
         let diameter = beads.iter().map(|b| b.diameter_mm).fold(0.0, f64::max);
         let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
         let expected = std::f64::consts::PI * radius_px * radius_px;
-        let candidates = blobs(&px, w as usize, det.i_max())
-            .into_iter()
+        let image = BeadImage::read(setup, det, &px, w as usize, radius_px);
+        let candidates = image
+            .blobs
+            .iter()
             .filter(|b| {
                 (b.area as f64) >= 0.45 * expected && (b.area as f64) <= 1.6 * expected + 2.0
             })
@@ -445,6 +594,13 @@ fn find_model(
             pitch: det.pixel_pitch_mm,
             blobs: candidates,
         });
+        images.push((
+            det.id.clone(),
+            frame,
+            c.beamline.source_mm,
+            radius_px,
+            image,
+        ));
     }
     let local: Vec<DVec3> = beads.iter().map(|b| b.position_mm).collect();
     let found = super::model::find_model(&views, &local)?;
@@ -456,6 +612,18 @@ fn find_model(
     if fit.condition_number > CN_LIMIT {
         flags.push(format!("CN > {CN_LIMIT}"));
     }
+    let occluded = images
+        .iter()
+        .flat_map(|(id, frame, source_mm, radius_px, image)| {
+            beads.iter().filter_map(move |b| {
+                let uv = frame.project(*source_mm, fit.pose.to_world(b.position_mm))?;
+                (frame.contains_pixel(uv) && image.occludes(uv, *radius_px)).then(|| OccludedBead {
+                    bead: b.id.clone(),
+                    detector: id.clone(),
+                })
+            })
+        })
+        .collect();
     Ok(model_pose(
         &fit.pose,
         FitQuality {
@@ -464,6 +632,7 @@ fn find_model(
             mean_error_mm: Some(fit.mean_error_mm),
             condition_number: Some(fit.condition_number),
             flags,
+            occluded,
             ..Default::default()
         },
     ))
@@ -483,6 +652,7 @@ fn model_pose(pose: &Pose, quality: FitQuality) -> MeasuredPose {
 /// Model-based RSA of one model: its shadow's outline in every calibrated view, fitted from the
 /// nominal pose (see [`super::silhouette`]).
 fn find_model_by_outline(
+    setup: &Setup,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
@@ -492,7 +662,13 @@ fn find_model_by_outline(
     let mut outlines = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
-        if let Some(o) = outline(&px, w as usize, det.i_max()) {
+        let imaging = &setup.scenario.imaging;
+        let found = if imaging.is_attenuation() {
+            graded_outline(&density(&px, w as usize, Reading::of(imaging, det.i_max())))
+        } else {
+            outline(&px, w as usize, det.i_max())
+        };
+        if let Some(o) = found {
             outlines.push((
                 c.beamline.frame(det.pixels, det.pixel_pitch_mm),
                 c.beamline.source_mm,

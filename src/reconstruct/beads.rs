@@ -1,0 +1,545 @@
+//! Finding beads in an attenuation-mode image, sharp or blurred, over soft tissue, bone edges and
+//! plates, and never in the metal shadow.
+//!
+//! The detector works on the attenuation image ([`super::density`]), where a bead's attenuation
+//! adds to whatever lies behind it, so its contrast does not depend on the background.
+//!
+//! 1. **Noise** per 32 × 32 tile: the median absolute difference of horizontal neighbours,
+//!    scaled to a standard deviation (robust to the few edges and beads in a tile).
+//! 2. **Matched filter** at the bead's expected scale (radius `r` pixels, from the known bead
+//!    diameter, nominal magnification and pitch): the mean of a box inside the bead's disc
+//!    (half-size `⌊r/√2⌋`, at least 1) minus the mean of a square ring around it (between
+//!    half-sizes `⌈r⌉ + 2` and `⌈r⌉ + 4`, clear of the bead and of its blur), by integral images.
+//! 3. **Candidates**: local maxima of the response over the excluded box, at least
+//!    [`MIN_SNR`] times the response's noise (tile noise × √(1/N_box + 1/N_ring)).
+//! 4. **Shape**: the pixels above half the candidate's peak contrast connected to it must stay
+//!    inside the window (a plate's edge or a bone ridge runs out of it) — their count is the
+//!    blob's area, which the matching then compares with a bead's.
+//! 5. **Metal**: a candidate whose window touches the metal shadow (a large clipped component,
+//!    [`metal_mask`]) is not a bead: its centre cannot be measured. It is dropped, so the bead
+//!    behind it is reported occluded (by the caller) instead of being matched to a wrong blob.
+//! 6. **Sub-pixel centre**: the background is a plane fitted to the ring (refitted once without
+//!    pixels off by more than 3 noise SDs: a bone edge or a neighbour); the intensity centroid of
+//!    the background-subtracted attenuation over a disc of radius `⌈r⌉ + 2`, recentred three
+//!    times, starts a least-squares fit of a circular Gaussian to the window, whose centre is
+//!    the bead's ([`Centre`]; the fit halves the centroid's error on the project's images, as
+//!    `tests/reconstruct_realistic.rs` measures).
+
+use glam::DVec2;
+
+use super::density::Density;
+use super::detect::Blob;
+
+/// Candidates must exceed the matched filter's noise this many times.
+pub const MIN_SNR: f64 = 6.0;
+/// Side of the noise tiles, pixels.
+const TILE: usize = 32;
+/// Centroid iterations (recentring the window).
+const CENTROID_ITERATIONS: usize = 3;
+
+/// The geometry of the filter and windows for a bead of radius `r` pixels.
+#[derive(Debug, Clone, Copy)]
+struct Scale {
+    /// Inner box half-size.
+    inner: usize,
+    /// Excluded box half-size (the bead and its blur).
+    clear: usize,
+    /// Outer ring half-size.
+    outer: usize,
+}
+
+impl Scale {
+    fn of(radius_px: f64) -> Scale {
+        let r = if radius_px.is_finite() {
+            radius_px.clamp(0.5, 50.0)
+        } else {
+            2.0
+        };
+        let inner = ((r / std::f64::consts::SQRT_2).floor() as usize).max(1);
+        let clear = r.ceil() as usize + 2;
+        Scale {
+            inner,
+            clear,
+            outer: clear + 2,
+        }
+    }
+}
+
+/// Summed-area table of a `width × height` image.
+struct Integral {
+    width: usize,
+    sums: Vec<f64>,
+}
+
+impl Integral {
+    fn new(values: &[f64], width: usize, height: usize) -> Integral {
+        let stride = width + 1;
+        let mut sums = vec![0.0; stride * (height + 1)];
+        for j in 0..height {
+            let mut row = 0.0;
+            for i in 0..width {
+                row += values[j * width + i];
+                sums[(j + 1) * stride + i + 1] = sums[j * stride + i + 1] + row;
+            }
+        }
+        Integral { width, sums }
+    }
+
+    /// Sum over columns `i0..i1`, rows `j0..j1` (half-open).
+    fn sum(&self, i0: usize, j0: usize, i1: usize, j1: usize) -> f64 {
+        let s = self.width + 1;
+        self.sums[j1 * s + i1] - self.sums[j0 * s + i1] - self.sums[j1 * s + i0]
+            + self.sums[j0 * s + i0]
+    }
+}
+
+/// The noise standard deviation of every 32 × 32 tile (tiles in row-major order, `tiles_x` wide).
+fn tile_noise(img: &Density) -> (Vec<f64>, usize) {
+    let (w, h) = (img.width, img.height);
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let mut out = Vec::with_capacity(tiles_x * tiles_y);
+    let mut diffs = Vec::with_capacity(TILE * TILE);
+    for ty in 0..tiles_y {
+        for tx in 0..tiles_x {
+            diffs.clear();
+            for j in ty * TILE..((ty + 1) * TILE).min(h) {
+                for i in tx * TILE..((tx + 1) * TILE).min(w.saturating_sub(1)) {
+                    let k = j * w + i;
+                    if !img.clipped[k] && !img.clipped[k + 1] {
+                        diffs.push((img.values[k + 1] - img.values[k]).abs());
+                    }
+                }
+            }
+            let sd = if diffs.is_empty() {
+                f64::INFINITY
+            } else {
+                let mid = diffs.len() / 2;
+                let (_, m, _) = diffs.select_nth_unstable_by(mid, f64::total_cmp);
+                // MAD of a difference of two N(0, σ²): 0.6745·√2·σ.
+                *m / (0.674_489_75 * std::f64::consts::SQRT_2)
+            };
+            out.push(sd);
+        }
+    }
+    // Quantised or noise-free tiles have a median difference of 0: floor at a tiny value so the
+    // threshold still means something, and let tiles with no usable pixel take the image median.
+    let mut finite: Vec<f64> = out.iter().copied().filter(|s| s.is_finite()).collect();
+    let fallback = if finite.is_empty() {
+        1e-3
+    } else {
+        let mid = finite.len() / 2;
+        *finite.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    for s in &mut out {
+        if !s.is_finite() {
+            *s = fallback;
+        }
+        *s = s.max(1e-4);
+    }
+    (out, tiles_x)
+}
+
+/// The metal shadow: the clipped pixels of 8-connected clipped components of at least
+/// `min_area` pixels (a bead's own clipped core is far smaller). Row-major, like the image.
+pub fn metal_mask(img: &Density, min_area: usize) -> Vec<bool> {
+    let as_u16: Vec<u16> = img.clipped.iter().map(|&c| u16::from(c)).collect();
+    let (labels, blobs) = super::detect::components(&as_u16, img.width.max(1), 1);
+    let big: Vec<bool> = blobs.iter().map(|b| b.area >= min_area).collect();
+    labels
+        .iter()
+        .map(|&l| l > 0 && big[l as usize - 1])
+        .collect()
+}
+
+/// Whether any pixel of `mask` (row-major, `width` wide) lies within `radius_px` of `uv`
+/// (continuous pixel coordinates).
+pub fn touches(mask: &[bool], width: usize, uv: DVec2, radius_px: f64) -> bool {
+    if width == 0 || !uv.is_finite() {
+        return false;
+    }
+    let height = mask.len() / width;
+    let lo = |c: f64| (c - radius_px - 0.5).floor().max(0.0) as usize;
+    let (i0, j0) = (lo(uv.x), lo(uv.y));
+    let i1 = ((uv.x + radius_px).ceil().max(0.0) as usize).min(width);
+    let j1 = ((uv.y + radius_px).ceil().max(0.0) as usize).min(height);
+    (j0..j1).any(|j| {
+        (i0..i1).any(|i| {
+            mask[j * width + i]
+                && (DVec2::new(i as f64 + 0.5, j as f64 + 0.5) - uv).length() <= radius_px
+        })
+    })
+}
+
+/// How a bead's sub-pixel centre is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Centre {
+    /// The background-subtracted intensity centroid over a disc, recentred.
+    Centroid,
+    /// A least-squares fit of a circular Gaussian (amplitude, centre, width) to the
+    /// background-subtracted window, started at the centroid (the default: the more accurate
+    /// of the two on the project's images, sharp or blurred; see the README).
+    #[default]
+    GaussianFit,
+}
+
+/// The beads of radius `radius_px` (pixels) in `img`, as blobs: sub-pixel centre, and as area the
+/// number of pixels above half the bead's peak contrast. Candidates touching `metal` (see
+/// [`metal_mask`]) are left out.
+pub fn find_beads(img: &Density, radius_px: f64, metal: &[bool]) -> Vec<Blob> {
+    find_beads_by(img, radius_px, metal, Centre::default())
+}
+
+/// [`find_beads`] with the centre measured by `centre`.
+pub fn find_beads_by(img: &Density, radius_px: f64, metal: &[bool], how: Centre) -> Vec<Blob> {
+    let (w, h) = (img.width, img.height);
+    let s = Scale::of(radius_px);
+    if w < 2 * s.outer + 3 || h < 2 * s.outer + 3 || metal.len() != w * h {
+        return Vec::new();
+    }
+    let integral = Integral::new(&img.values, w, h);
+    let (noise, tiles_x) = tile_noise(img);
+    let n_in = ((2 * s.inner + 1) * (2 * s.inner + 1)) as f64;
+    let n_ring = ((2 * s.outer + 1).pow(2) - (2 * s.clear + 1).pow(2)) as f64;
+    let noise_factor = (1.0 / n_in + 1.0 / n_ring).sqrt();
+    // Matched filter response, divided by its noise, on every pixel whose ring fits.
+    let mut snr = vec![0.0f64; w * h];
+    let (b, a, c) = (s.outer, s.inner, s.clear);
+    for j in b..h - b {
+        for i in b..w - b {
+            let inner = integral.sum(i - a, j - a, i + a + 1, j + a + 1) / n_in;
+            let outer = integral.sum(i - b, j - b, i + b + 1, j + b + 1);
+            let clear = integral.sum(i - c, j - c, i + c + 1, j + c + 1);
+            let ring = (outer - clear) / n_ring;
+            let sd = noise[(j / TILE) * tiles_x + i / TILE] * noise_factor;
+            snr[j * w + i] = (inner - ring) / sd;
+        }
+    }
+    let mut out = Vec::new();
+    for j in b..h - b {
+        for i in b..w - b {
+            let v = snr[j * w + i];
+            if !(v >= MIN_SNR) || !is_local_max(&snr, w, h, i, j, c) {
+                continue;
+            }
+            let at = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+            if touches(metal, w, at, c as f64 + 1.0) {
+                continue;
+            }
+            let sd = noise[(j / TILE) * tiles_x + i / TILE];
+            if let Some(blob) = measure(img, i, j, s, sd, how) {
+                out.push(blob);
+            }
+        }
+    }
+    out
+}
+
+/// Whether `snr[j·w + i]` is the largest within the box of half-size `half` (ties go to the
+/// first pixel in row-major order).
+fn is_local_max(snr: &[f64], w: usize, h: usize, i: usize, j: usize, half: usize) -> bool {
+    let v = snr[j * w + i];
+    for y in j.saturating_sub(half)..(j + half + 1).min(h) {
+        for x in i.saturating_sub(half)..(i + half + 1).min(w) {
+            let u = snr[y * w + x];
+            if u > v || (u == v && (y, x) < (j, i)) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// A background plane `p[0] + p[1]·(x − i) + p[2]·(y − j)` fitted to the ring of the window
+/// around pixel (i, j), refitted once without outliers beyond 3 `sd`.
+fn ring_plane(img: &Density, i: usize, j: usize, s: Scale, sd: f64) -> Option<[f64; 3]> {
+    let (c, b) = (s.clear as i64, s.outer as i64);
+    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
+    for dy in -b..=b {
+        for dx in -b..=b {
+            if dx.abs() <= c && dy.abs() <= c {
+                continue;
+            }
+            let (x, y) = ((i as i64 + dx) as usize, (j as i64 + dy) as usize);
+            if !img.clipped[y * img.width + x] {
+                pts.push((dx as f64, dy as f64, img.at(x, y)));
+            }
+        }
+    }
+    let mut plane = fit_plane(&pts)?;
+    let eval = |p: &[f64; 3], x: f64, y: f64| p[0] + p[1] * x + p[2] * y;
+    let kept: Vec<(f64, f64, f64)> = pts
+        .iter()
+        .copied()
+        .filter(|&(x, y, v)| (v - eval(&plane, x, y)).abs() <= 3.0 * sd)
+        .collect();
+    if kept.len() >= pts.len() / 2 {
+        plane = fit_plane(&kept).unwrap_or(plane);
+    }
+    Some(plane)
+}
+
+/// Least-squares plane `v ≈ p0 + p1·x + p2·y`.
+fn fit_plane(pts: &[(f64, f64, f64)]) -> Option<[f64; 3]> {
+    if pts.len() < 3 {
+        return None;
+    }
+    let m = nalgebra::Matrix3::from_fn(|r, c| {
+        pts.iter()
+            .map(|&(x, y, _)| {
+                let f = [1.0, x, y];
+                f[r] * f[c]
+            })
+            .sum::<f64>()
+    });
+    let rhs = nalgebra::Vector3::from_fn(|r, _| {
+        pts.iter().map(|&(x, y, v)| [1.0, x, y][r] * v).sum::<f64>()
+    });
+    let p = m.lu().solve(&rhs)?;
+    Some([p[0], p[1], p[2]])
+}
+
+/// The blob of the candidate at pixel (i, j): shape check, area and sub-pixel centre.
+fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) -> Option<Blob> {
+    let plane = ring_plane(img, i, j, s, sd)?;
+    let (ci, cj) = (i as f64 + 0.5, j as f64 + 0.5);
+    let excess = |x: usize, y: usize| {
+        img.at(x, y)
+            - (plane[0] + plane[1] * (x as f64 - i as f64) + plane[2] * (y as f64 - j as f64))
+    };
+    let c = s.clear;
+    // Half-maximum region connected to the peak, inside the cleared box.
+    let (x0, y0) = (i - c, j - c);
+    let side = 2 * c + 1;
+    let mut peak = f64::NEG_INFINITY;
+    for y in y0..y0 + side {
+        for x in x0..x0 + side {
+            if (x as i64 - i as i64).abs() <= 1 && (y as i64 - j as i64).abs() <= 1 {
+                peak = peak.max(excess(x, y));
+            }
+        }
+    }
+    if !(peak > 0.0) {
+        return None;
+    }
+    let half = 0.5 * peak;
+    let mut inside = vec![false; side * side];
+    let mut stack = vec![(i, j)];
+    inside[c * side + c] = true;
+    let mut area = 0usize;
+    let mut bbox = [u32::MAX, u32::MAX, 0, 0];
+    while let Some((x, y)) = stack.pop() {
+        area += 1;
+        bbox = [
+            bbox[0].min(x as u32),
+            bbox[1].min(y as u32),
+            bbox[2].max(x as u32),
+            bbox[3].max(y as u32),
+        ];
+        for (dx, dy) in [
+            (-1i64, 0i64),
+            (1, 0),
+            (0, -1),
+            (0, 1),
+            (-1, -1),
+            (1, 1),
+            (-1, 1),
+            (1, -1),
+        ] {
+            let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+            let (lx, ly) = (nx - x0 as i64, ny - y0 as i64);
+            if lx < 0 || ly < 0 || lx >= side as i64 || ly >= side as i64 {
+                // The region reaches the window's edge: a ridge or an edge, not a bead.
+                if excess(nx as usize, ny as usize) >= half {
+                    return None;
+                }
+                continue;
+            }
+            let k = ly as usize * side + lx as usize;
+            if !inside[k] && excess(nx as usize, ny as usize) >= half {
+                inside[k] = true;
+                stack.push((nx as usize, ny as usize));
+            }
+        }
+    }
+    // Intensity centroid over a disc, recentred.
+    let radius = c as f64;
+    let mut centre = DVec2::new(ci, cj);
+    for _ in 0..CENTROID_ITERATIONS {
+        let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+        for y in j - c..=j + c {
+            for x in i - c..=i + c {
+                let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                if (p - centre).length() > radius {
+                    continue;
+                }
+                let e = excess(x, y);
+                sw += e;
+                su += e * p.x;
+                sv += e * p.y;
+            }
+        }
+        if !(sw > 0.0) {
+            return None;
+        }
+        let next = DVec2::new(su / sw, sv / sw);
+        if (next - DVec2::new(ci, cj)).length() > 1.5 {
+            return None;
+        }
+        centre = next;
+    }
+    if how == Centre::GaussianFit {
+        centre = gaussian_fit(i, j, c, &excess, centre)?;
+    }
+    Some(Blob {
+        centroid: centre,
+        area,
+        bbox,
+    })
+}
+
+/// The centre of a circular Gaussian `A·exp(−|p − m|²/(2σ²))` fitted by Gauss–Newton to the
+/// `excess` of the pixels within `c` of the window's centre pixel (i, j), from `start`.
+fn gaussian_fit(
+    i: usize,
+    j: usize,
+    c: usize,
+    excess: &impl Fn(usize, usize) -> f64,
+    start: DVec2,
+) -> Option<DVec2> {
+    let pts: Vec<(DVec2, f64)> = (j - c..=j + c)
+        .flat_map(|y| (i - c..=i + c).map(move |x| (x, y)))
+        .map(|(x, y)| (DVec2::new(x as f64 + 0.5, y as f64 + 0.5), excess(x, y)))
+        .collect();
+    let peak = pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    // Parameters: amplitude, centre u, v, ln σ (σ starts at a third of the window).
+    let mut q = [peak, start.x, start.y, libm::log(c as f64 / 3.0)];
+    for _ in 0..20 {
+        let mut h = nalgebra::Matrix4::<f64>::zeros();
+        let mut g = nalgebra::Vector4::<f64>::zeros();
+        let sigma = libm::exp(q[3]);
+        for &(p, v) in &pts {
+            let d = p - DVec2::new(q[1], q[2]);
+            let r2 = d.length_squared();
+            let e = libm::exp(-r2 / (2.0 * sigma * sigma));
+            let model = q[0] * e;
+            let jac = nalgebra::Vector4::new(
+                e,
+                model * d.x / (sigma * sigma),
+                model * d.y / (sigma * sigma),
+                model * r2 / (sigma * sigma),
+            );
+            h += jac * jac.transpose();
+            g += jac * (v - model);
+        }
+        let step = h.lu().solve(&g)?;
+        for k in 0..4 {
+            q[k] += step[k].clamp(-1.0, 1.0);
+        }
+        if step.iter().all(|x| x.abs() < 1e-7) {
+            break;
+        }
+    }
+    let m = DVec2::new(q[1], q[2]);
+    ((m - start).length() <= 1.0 && q[0] > 0.0).then_some(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A synthetic attenuation image: a sloped background plus beads of radius `r` px (area
+    /// sampled 8×8 per pixel, attenuation ∝ chord length) and Gaussian-free deterministic noise.
+    fn scene(w: usize, h: usize, beads: &[DVec2], r: f64, mu: f64) -> Density {
+        let mut values = vec![0.0; w * h];
+        for j in 0..h {
+            for i in 0..w {
+                let mut v = 0.5 + 0.001 * i as f64 + 0.0005 * j as f64;
+                for c in beads {
+                    let mut acc = 0.0;
+                    for sy in 0..8 {
+                        for sx in 0..8 {
+                            let p = DVec2::new(
+                                i as f64 + (sx as f64 + 0.5) / 8.0,
+                                j as f64 + (sy as f64 + 0.5) / 8.0,
+                            );
+                            let d2 = (p - *c).length_squared();
+                            if d2 < r * r {
+                                acc += 2.0 * (r * r - d2).sqrt();
+                            }
+                        }
+                    }
+                    v += mu * acc / 64.0;
+                }
+                values[j * w + i] = v;
+            }
+        }
+        Density {
+            width: w,
+            height: h,
+            clipped: vec![false; w * h],
+            values,
+        }
+    }
+
+    #[test]
+    fn area_sampled_beads_on_a_slope_are_found_at_their_centres() {
+        let beads = [
+            DVec2::new(20.3, 22.7),
+            DVec2::new(51.55, 18.2),
+            DVec2::new(40.9, 49.05),
+        ];
+        let img = scene(72, 70, &beads, 2.3, 1.0);
+        let metal = vec![false; 72 * 70];
+        let found = find_beads(&img, 2.3, &metal);
+        assert_eq!(found.len(), 3, "{found:?}");
+        for b in &beads {
+            let nearest = found
+                .iter()
+                .map(|f| (f.centroid - *b).length())
+                .fold(f64::INFINITY, f64::min);
+            assert!(nearest < 0.01, "{b}: {nearest} px");
+        }
+        // A bead's half-maximum area is about its disc's (π·2.3² ≈ 16.6 px).
+        assert!(
+            found.iter().all(|f| (8..=25).contains(&f.area)),
+            "{found:?}"
+        );
+    }
+
+    #[test]
+    fn a_bead_touching_metal_is_not_reported_and_a_step_edge_is_not_a_bead() {
+        let beads = [DVec2::new(20.5, 20.5), DVec2::new(45.5, 20.5)];
+        let mut img = scene(72, 44, &beads, 2.3, 1.0);
+        // Metal: a clipped block whose edge is 4 px from the second bead's centre.
+        let mut clipped = vec![false; 72 * 44];
+        for j in 0..44 {
+            for i in 50..72 {
+                clipped[j * 72 + i] = true;
+                img.values[j * 72 + i] = 7.0;
+            }
+        }
+        img.clipped = clipped;
+        let metal = metal_mask(&img, 100);
+        let found = find_beads(&img, 2.3, &metal);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!((found[0].centroid - beads[0]).length() < 0.05);
+        // Without the metal mask the second bead is still never a blob of the step's corner rows.
+        let none = vec![false; 72 * 44];
+        for f in find_beads(&img, 2.3, &none) {
+            assert!(
+                beads.iter().any(|b| (f.centroid - *b).length() < 1.5),
+                "a blob off every bead: {f:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn touches_measures_from_pixel_centres() {
+        let mut mask = vec![false; 100];
+        mask[5 * 10 + 7] = true; // centre (7.5, 5.5)
+        assert!(touches(&mask, 10, DVec2::new(5.5, 5.5), 2.0));
+        assert!(!touches(&mask, 10, DVec2::new(5.4, 5.5), 2.0));
+        assert!(!touches(&mask, 10, DVec2::new(f64::NAN, 1.0), 2.0));
+    }
+}
