@@ -152,9 +152,19 @@ phantoms = ["box"]
     rsasim::simulate::prepare_loaded(loaded).expect("prepares")
 }
 
-/// The expected image of run 0's first exposure on its first detector, sampled as the scenario
-/// says.
-fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected {
+/// Calls `f` with what run 0's first exposure on its first detector needs: the setup, the
+/// parts, the frame, the source, the beam and the detector model.
+fn with_inputs<R>(
+    plan: &rsasim::simulate::Plan,
+    f: impl FnOnce(
+        &rsasim::attenuation::Setup,
+        &[rsasim::attenuation::Part],
+        &DetectorFrame,
+        rsasim::geometry::DVec3,
+        &rsasim::response::Beam,
+        &rsasim::response::DetectorModel,
+    ) -> R,
+) -> R {
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
     let parts = rsasim::attenuation::parts(
@@ -170,10 +180,18 @@ fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected
     let (frame, source) = (det.frame(), run.source_of(det));
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
+    f(setup, &parts, &frame, source, &beam, &detector)
+}
+
+/// The expected image of run 0's first exposure on its first detector, sampled as the scenario
+/// says.
+fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected {
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    rsasim::attenuation::sampled::expected(
-        setup, &parts, &frame, source, &beam, &detector, &sampling,
-    )
+    with_inputs(plan, |setup, parts, frame, source, beam, detector| {
+        rsasim::attenuation::sampled::expected(
+            setup, parts, frame, source, beam, detector, &sampling,
+        )
+    })
 }
 
 /// Centroid errors (px) of the beads' absorption `1 − Q/S_open` in the expected image.
@@ -219,47 +237,34 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     // sampled path adds each value once with weight 1).
     let plan = bead_plate("");
     let sampled = sampled_expected(&plan);
-    let setup = plan.setup.as_ref().unwrap();
-    let run = &plan.runs[0];
-    let parts = rsasim::attenuation::parts(
-        &plan.loaded.scenario,
-        setup,
-        &plan.models,
-        &[None],
-        run,
-        &run.exposures[0],
-    )
-    .unwrap();
-    let det = &run.detectors[0];
-    let (frame, source) = (det.frame(), run.source_of(det));
-    let beam = setup.beam(&frame, source, 1.0);
-    let detector = setup.detector(&beam, det.i_max());
-    let shadows: Vec<_> = parts
-        .iter()
-        .map(|p| rsasim::trace::path_lengths(&frame, source, &p.object))
-        .collect();
-    let layers: Vec<rsasim::response::Layer> = parts
-        .iter()
-        .zip(&shadows)
-        .filter_map(|(p, s)| {
-            s.as_ref().map(|pl| rsasim::response::Layer {
-                material: p.material,
-                sign: 1.0,
-                columns: pl.columns.start as usize..pl.columns.end as usize,
-                rows: pl.rows.start as usize..pl.rows.end as usize,
-                length_mm: &pl.length_mm,
+    let sharp = with_inputs(&plan, |setup, parts, &frame, source, beam, detector| {
+        let shadows: Vec<_> = parts
+            .iter()
+            .map(|p| rsasim::trace::path_lengths(&frame, source, &p.object))
+            .collect();
+        let layers: Vec<rsasim::response::Layer> = parts
+            .iter()
+            .zip(&shadows)
+            .filter_map(|(p, s)| {
+                s.as_ref().map(|pl| rsasim::response::Layer {
+                    material: p.material,
+                    sign: 1.0,
+                    columns: pl.columns.start as usize..pl.columns.end as usize,
+                    rows: pl.rows.start as usize..pl.rows.end as usize,
+                    length_mm: &pl.length_mm,
+                })
             })
-        })
-        .collect();
-    let fluence = rsasim::response::PointSourceFluence::new(&frame, source);
-    let scene = rsasim::response::Scene {
-        width: 480,
-        height: 480,
-        mu_per_mm: &setup.mu_per_mm,
-        layers: &layers,
-        fluence: rsasim::response::Fluence::PointSource(&fluence),
-    };
-    let sharp = rsasim::response::expected(&beam, &detector, &scene);
+            .collect();
+        let fluence = rsasim::response::PointSourceFluence::new(&frame, source);
+        let scene = rsasim::response::Scene {
+            width: 480,
+            height: 480,
+            mu_per_mm: &setup.mu_per_mm,
+            layers: &layers,
+            fluence: rsasim::response::Fluence::PointSource(&fluence),
+        };
+        rsasim::response::expected(beam, detector, &scene)
+    });
     assert_eq!(sampled, sharp);
 }
 

@@ -89,10 +89,7 @@ pub fn render(
 ) -> Result<AttenuationImage, String> {
     let [w, h] = frame.pixels.map(|n| n as usize);
     // Parts in parallel (a mesh is scan-converted on one thread), each part's lengths its own.
-    let shadows: Vec<Option<PathLengths>> = parts
-        .par_iter()
-        .map(|part| path_lengths(frame, source_mm, &part.object))
-        .collect();
+    let shadows = shadows_of(parts, frame, source_mm);
     let layers = layers_of(parts, &shadows);
     check_nesting(setup, parts, &layers, w)?;
     let fluence = response::PointSourceFluence::new(frame, source_mm);
@@ -189,6 +186,19 @@ pub fn render(
         beads,
         lengths_mm,
     })
+}
+
+/// Every part's path lengths on `frame` from `source_mm` (parts in parallel; a mesh is
+/// scan-converted on one thread), in part order.
+pub(super) fn shadows_of(
+    parts: &[Part],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+) -> Vec<Option<PathLengths>> {
+    parts
+        .par_iter()
+        .map(|part| path_lengths(frame, source_mm, &part.object))
+        .collect()
 }
 
 /// The layers of the parts' shadows: each part's lengths added to its material and, for a

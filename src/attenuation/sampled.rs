@@ -8,15 +8,13 @@
 //! `crate::response::render_expected`.
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::geometry::DetectorFrame;
 use crate::response::{self, Beam, DetectorModel, Expected, Fluence, PointSourceFluence, Scene};
 use crate::sampling::Sampling;
 use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips};
-use crate::trace::{PathLengths, path_lengths};
 
-use super::image::layers_of;
+use super::image::{layers_of, shadows_of};
 use super::scene::Part;
 use super::setup::Setup;
 
@@ -44,10 +42,7 @@ pub fn expected(
     let strips = strips(frame, s as u32, STRIP_SAMPLES);
     for (src, weight) in sampling.sources(frame, source_mm) {
         for st in &strips {
-            let shadows: Vec<Option<PathLengths>> = parts
-                .par_iter()
-                .map(|part| path_lengths(&st.frame, src, &part.object))
-                .collect();
+            let shadows = shadows_of(parts, &st.frame, src);
             let layers = layers_of(parts, &shadows);
             let fluence = PointSourceFluence::new(&st.frame, src);
             let [fw, fh] = st.frame.pixels.map(|n| n as usize);
