@@ -167,11 +167,20 @@ fn with_inputs<R>(
 ) -> R {
     let setup = plan.setup.as_ref().unwrap();
     let run = &plan.runs[0];
+    let bvhs: Vec<_> = plan
+        .models
+        .iter()
+        .map(|m| {
+            m.mesh
+                .as_ref()
+                .map(|mesh| std::sync::Arc::new(rsasim::trace::MeshBvh::new(mesh)))
+        })
+        .collect();
     let parts = rsasim::attenuation::parts(
         &plan.loaded.scenario,
         setup,
         &plan.models,
-        &[None],
+        &bvhs,
         run,
         &run.exposures[0],
     )
@@ -283,4 +292,95 @@ fn many_rays_per_pixel_are_a_warning_about_cost() {
             .any(|w| format!("{w:?}").contains("rays per pixel")),
         "144 rays per pixel need no warning"
     );
+}
+
+/// The knee of `biplanar_realistic` (femoral component, cortical and cancellous femur, six
+/// tantalum markers, soft tissue) on a 360² crop of its detector around the component, 60 keV,
+/// 10⁴ photons per pixel, with the issue-12 unsharpness: 2 × 2 rays per pixel and a 1.2 mm spot
+/// of 3 × 3 sub-sources.
+fn knee_crop(ray_sampling: &str) -> rsasim::simulate::Plan {
+    let scenario = std::fs::read_to_string("bench/attenuation/realistic_unsharp.toml").unwrap();
+    let text = scenario
+        .replace("pixels = [1440, 1440]", "pixels = [360, 360]")
+        .replace("size_mm = [430.0, 430.0]", "size_mm = [107.5, 107.5]")
+        .replace(
+            "focal_spot = { size_mm = 1.2, profile = \"uniform\", samples = 3 }",
+            &format!(
+                "focal_spot = {{ size_mm = 1.2, profile = \"uniform\", samples = 3 }}\nray_sampling = \"{ray_sampling}\""
+            ),
+        );
+    assert!(text.contains("ray_sampling") && text.contains("[360, 360]"));
+    let mut loaded = rsasim::scenario::from_text(
+        &text,
+        Path::new("bench/attenuation/realistic_unsharp.toml"),
+        Path::new("bench/attenuation"),
+    )
+    .expect("valid scenario");
+    loaded
+        .allowed_dirs
+        .push(std::fs::canonicalize("scenarios/models").unwrap());
+    rsasim::simulate::prepare_loaded(loaded).expect("prepares")
+}
+
+/// Adaptive sampling against every ray of every pixel on the knee: the largest difference of
+/// any pixel is a small fraction of its quantum noise, most pixels keep one ray, and the pixels
+/// near edges (the component's outline, the markers) get all theirs.
+#[test]
+fn adaptive_sampling_stays_within_its_bound_of_full_sampling() {
+    let full = sampled_expected(&knee_crop("full"));
+    let plan = knee_crop("adaptive");
+    let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
+    assert!(sampling.adaptive);
+    let (fast, sharp) = with_inputs(&plan, |setup, parts, frame, source, beam, detector| {
+        let fast = rsasim::attenuation::sampled::expected_adaptive_of(
+            setup, parts, frame, source, beam, detector, &sampling,
+        );
+        let mut point = Sampling::from_imaging(&rsasim::scenario::Imaging::default());
+        point.adaptive = false;
+        let sharp = rsasim::attenuation::sampled::expected(
+            setup, parts, frame, source, beam, detector, &point,
+        );
+        (fast, sharp)
+    });
+    let n = full.quanta.len();
+    let (mut worst_q, mut worst_e, mut kept) = (0.0f64, 0.0f64, 0usize);
+    for p in 0..n {
+        let sd = full.quanta[p].sqrt();
+        worst_q = worst_q.max((fast.quanta[p] - full.quanta[p]).abs() / sd);
+        worst_e = worst_e
+            .max((fast.energy_kev[p] - full.energy_kev[p]).abs() / (full.energy_kev[p] / sd));
+        if fast.quanta[p] == sharp.quanta[p] {
+            kept += 1;
+        }
+    }
+    let kept_share = kept as f64 / n as f64;
+    // Where the sharp and the full image differ by more than the bound, adaptive must have
+    // refined: the component's outline and the markers.
+    let (mut differ, mut differ_refined) = (0usize, 0usize);
+    for p in 0..n {
+        let sd = full.quanta[p].sqrt();
+        if (sharp.quanta[p] - full.quanta[p]).abs() > 0.1 * sd {
+            differ += 1;
+            if fast.quanta[p] != sharp.quanta[p] {
+                differ_refined += 1;
+            }
+        }
+    }
+    eprintln!(
+        "adaptive vs full, knee crop 360²: max |ΔQ|/√Q {worst_q:.4}, max |ΔE|/(E/√Q) {worst_e:.4}; \
+         {:.1} % of pixels keep one ray; {differ} pixels where one ray is off by > 0.1 SD, \
+         {differ_refined} of them refined",
+        100.0 * kept_share
+    );
+    assert!(worst_q <= 0.1, "max |ΔQ|/√Q = {worst_q}");
+    assert!(worst_e <= 0.1, "max |ΔE|/(E/√Q) = {worst_e}");
+    assert!(
+        kept_share > 0.5,
+        "only {kept_share} of the pixels keep one ray"
+    );
+    assert!(
+        differ > 1000,
+        "the unsharpness must matter on this crop: {differ} pixels"
+    );
+    assert_eq!(differ_refined, differ);
 }

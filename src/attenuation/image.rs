@@ -108,6 +108,18 @@ pub fn render(
     } else {
         let expected = if formation.sampling.is_point() {
             response::expected(&beam, &detector, &scene)
+        } else if formation.sampling.adaptive {
+            super::sampled::expected_adaptive(
+                setup,
+                parts,
+                &shadows,
+                frame,
+                source_mm,
+                &beam,
+                &detector,
+                formation.sampling,
+                response::expected(&beam, &detector, &scene),
+            )
         } else {
             super::sampled::expected(
                 setup,

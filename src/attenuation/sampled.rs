@@ -8,11 +8,13 @@
 //! `crate::response::render_expected`.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::geometry::DetectorFrame;
 use crate::response::{self, Beam, DetectorModel, Expected, Fluence, PointSourceFluence, Scene};
-use crate::sampling::Sampling;
-use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips};
+use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips, window};
+use crate::sampling::{Sampling, adaptive};
+use crate::trace::{Object, PathLengths, Projected};
 
 use super::image::{layers_of, shadows_of};
 use super::scene::Part;
@@ -70,4 +72,264 @@ pub fn expected(
         }
     }
     out
+}
+
+/// [`expected_adaptive`] from the parts alone: the sharp image first (one ray per pixel centre
+/// from the spot's centre), then the refined pixels; what `super::render` does with the sharp
+/// path lengths it already has.
+pub fn expected_adaptive_of(
+    setup: &Setup,
+    parts: &[Part],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    beam: &Beam,
+    detector: &DetectorModel,
+    sampling: &Sampling,
+) -> Expected {
+    let shadows = shadows_of(parts, frame, source_mm);
+    let layers = layers_of(parts, &shadows);
+    let fluence = PointSourceFluence::new(frame, source_mm);
+    let [w, h] = frame.pixels.map(|n| n as usize);
+    let scene = Scene {
+        width: w,
+        height: h,
+        mu_per_mm: &setup.mu_per_mm,
+        layers: &layers,
+        fluence: Fluence::PointSource(&fluence),
+    };
+    let sharp = response::expected(beam, detector, &scene);
+    expected_adaptive(
+        setup, parts, &shadows, frame, source_mm, beam, detector, sampling, sharp,
+    )
+}
+
+/// The same image by adaptive sampling (`crate::sampling::adaptive`): `sharp` is the expected
+/// image of one ray per pixel centre from the spot's centre (`shadows`: every part's path
+/// lengths on those rays, in part order). The pixels the refine mask marks get the mean over all
+/// their rays, computed in tiles of [`adaptive::TILE_PX`] pixels (sub-sources in order, then
+/// samples row by row, as [`expected`]); every other pixel keeps its sharp value. The heel factor
+/// then multiplies all three images, as in [`expected`].
+#[allow(clippy::too_many_arguments)]
+pub fn expected_adaptive(
+    setup: &Setup,
+    parts: &[Part],
+    shadows: &[Option<PathLengths>],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    beam: &Beam,
+    detector: &DetectorModel,
+    sampling: &Sampling,
+    sharp: Expected,
+) -> Expected {
+    let [w, h] = frame.pixels.map(|n| n as usize);
+    let s = sampling.samples_per_side.max(1);
+    let footprint = footprint(parts, frame, source_mm, sampling);
+    let edges = edges(parts, shadows, frame, source_mm, w, h);
+    let mask = adaptive::refine_mask(
+        w,
+        h,
+        &edges,
+        &sharp.quanta,
+        &sharp.energy_kev,
+        &footprint,
+        adaptive::TOLERANCE_NOISE_SD,
+    );
+    let tiles = adaptive::tiles(&mask, w, h);
+    let mut out = sharp;
+    if !tiles.is_empty() {
+        let fine = window(frame, 0, 0, w as u32, h as u32, s);
+        let sources = sampling.sources(frame, source_mm);
+        let cell = adaptive::TILE_PX * s;
+        let projected: Vec<Vec<Projected>> = sources
+            .par_iter()
+            .map(|(src, _)| {
+                parts
+                    .iter()
+                    .map(|p| Projected::new(&fine, *src, &p.object, cell))
+                    .collect()
+            })
+            .collect();
+        let sum = |&(i0, j0): &(u32, u32)| {
+            tile_mean(
+                setup, parts, frame, beam, detector, &sources, &projected, &mask, s, i0, j0,
+            )
+        };
+        let means: Vec<[Vec<f64>; 3]> = tiles.par_iter().map(sum).collect();
+        let t = adaptive::TILE_PX as usize;
+        for (&(i0, j0), [q, e, o]) in tiles.iter().zip(&means) {
+            let (i0, j0) = (i0 as usize, j0 as usize);
+            let tw = t.min(w - i0);
+            for (k, ((q, e), o)) in q.iter().zip(e).zip(o).enumerate() {
+                let p = (j0 + k / tw) * w + i0 + k % tw;
+                if mask[p] {
+                    out.quanta[p] = *q;
+                    out.energy_kev[p] = *e;
+                    out.open_signal[p] = *o;
+                }
+            }
+        }
+    }
+    if let Some(heel) = &sampling.heel {
+        let factor = heel.image(frame);
+        for image in [&mut out.quanta, &mut out.energy_kev, &mut out.open_signal] {
+            for (v, f) in image.iter_mut().zip(&factor) {
+                *v *= f;
+            }
+        }
+    }
+    out
+}
+
+/// The mean over all rays of the pixels of the tile at (`i0`, `j0`): quanta, energy and open
+/// signal, row-major over the tile. Only pixels of `mask` are traced; the others are left at
+/// their open-field value (not used).
+#[allow(clippy::too_many_arguments)]
+fn tile_mean(
+    setup: &Setup,
+    parts: &[Part],
+    frame: &DetectorFrame,
+    beam: &Beam,
+    detector: &DetectorModel,
+    sources: &[(DVec3, f64)],
+    projected: &[Vec<Projected>],
+    mask: &[bool],
+    s: u32,
+    i0: u32,
+    j0: u32,
+) -> [Vec<f64>; 3] {
+    let [w, h] = frame.pixels;
+    let t = adaptive::TILE_PX;
+    let (tw, th) = (t.min(w - i0), t.min(h - j0));
+    let n = (tw * th) as usize;
+    let mut sums = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    let (columns, rows) = (i0 * s..(i0 + tw) * s, j0 * s..(j0 + th) * s);
+    let wanted = |fi: u32, fj: u32| mask[(fj / s) as usize * w as usize + (fi / s) as usize];
+    let tile_frame = window(frame, i0, j0, tw, th, s);
+    let per_sample = 1.0 / f64::from(s * s);
+    for ((src, weight), parts_seen) in sources.iter().zip(projected) {
+        // The parts' lengths over the tile's samples, in the tile's own pixel coordinates.
+        let shadows: Vec<Option<PathLengths>> = parts_seen
+            .iter()
+            .map(|p| {
+                p.window(columns.clone(), rows.clone(), &wanted)
+                    .map(|pl| PathLengths {
+                        columns: 0..tw * s,
+                        rows: 0..th * s,
+                        length_mm: pl.length_mm,
+                    })
+            })
+            .collect();
+        let layers = layers_of(parts, &shadows);
+        let fluence = PointSourceFluence::new(&tile_frame, *src);
+        let scene = Scene {
+            width: (tw * s) as usize,
+            height: (th * s) as usize,
+            mu_per_mm: &setup.mu_per_mm,
+            layers: &layers,
+            fluence: Fluence::PointSource(&fluence),
+        };
+        let fine = response::expected(beam, detector, &scene);
+        let k = weight * per_sample;
+        let (s, tw) = (s as usize, tw as usize);
+        add_blocks(&fine.quanta, tw, s, k, &mut sums[0]);
+        add_blocks(&fine.energy_kev, tw, s, k, &mut sums[1]);
+        add_blocks(&fine.open_signal, tw, s, k, &mut sums[2]);
+    }
+    sums
+}
+
+/// The footprint of the rays of a pixel ([`adaptive::Footprint`]) for the parts' depths: the
+/// largest `(D − z)/z` over the corners of every part's bounding box, z the corner's distance
+/// from the spot's plane and D the detector's.
+fn footprint(
+    parts: &[Part],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    sampling: &Sampling,
+) -> adaptive::Footprint {
+    let d = frame.pose.to_local(source_mm).z;
+    let ratio = parts
+        .iter()
+        .flat_map(|p| p.object.bounding_corners_mm())
+        .map(|c| {
+            let height = frame.pose.to_local(c).z;
+            // A corner at or behind the spot's plane: no bound from it but the detector's size.
+            if height >= d {
+                f64::INFINITY
+            } else {
+                height / (d - height)
+            }
+        })
+        .fold(0.0, f64::max)
+        .min(MAX_DEPTH_RATIO);
+    let offsets: Vec<[f64; 2]> = sampling.sub_sources.iter().map(|s| s.offset_mm).collect();
+    let weights: Vec<f64> = sampling.sub_sources.iter().map(|s| s.weight).collect();
+    adaptive::Footprint::new(
+        sampling.samples_per_side,
+        &offsets,
+        &weights,
+        frame.pixel_pitch_mm,
+        ratio,
+    )
+}
+
+/// The largest depth ratio the footprint takes: a part reaching the spot's plane would blur
+/// over the whole detector; beyond this every pixel near an edge is refined far out anyway.
+const MAX_DEPTH_RATIO: f64 = 1e3;
+
+/// The pixels (W×H) where some part's shadow starts or ends on the rays to the pixel centres
+/// (both sides of the boundary), and every pixel within a bead's projected radius plus one pixel
+/// of its projected centre: a bead may be too small for the pixel centres to see.
+fn edges(
+    parts: &[Part],
+    shadows: &[Option<PathLengths>],
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    w: usize,
+    h: usize,
+) -> Vec<bool> {
+    let mut edges = vec![false; w * h];
+    for (part, shadow) in parts.iter().zip(shadows) {
+        if let Object::Sphere {
+            centre_mm,
+            radius_mm,
+        } = &part.object
+        {
+            let rim = *centre_mm + frame.pose.rotation.x_axis * *radius_mm;
+            if let (Some(c), Some(r)) = (
+                frame.project(source_mm, *centre_mm),
+                frame.project(source_mm, rim),
+            ) {
+                let reach = (r - c).length() + 1.0;
+                let (lo, hi) = (c - reach, c + reach);
+                let clip = |v: f64, n: usize| v.floor().clamp(0.0, n as f64) as usize;
+                for j in clip(lo.y, h)..clip(hi.y + 1.0, h) {
+                    edges[j * w + clip(lo.x, w)..j * w + clip(hi.x + 1.0, w)].fill(true);
+                }
+            }
+            continue;
+        }
+        let Some(pl) = shadow else { continue };
+        let inside = |i: i64, j: i64| {
+            i >= 0 && j >= 0 && i < w as i64 && j < h as i64 && pl.at(i as u32, j as u32) > 0.0
+        };
+        for j in pl.rows.clone() {
+            for i in pl.columns.clone() {
+                let (i, j) = (i64::from(i), i64::from(j));
+                if !inside(i, j) {
+                    continue;
+                }
+                for (di, dj) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+                    let (ni, nj) = (i + di, j + dj);
+                    if !inside(ni, nj) {
+                        edges[j as usize * w + i as usize] = true;
+                        if ni >= 0 && nj >= 0 && ni < w as i64 && nj < h as i64 {
+                            edges[nj as usize * w + ni as usize] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    edges
 }

@@ -122,6 +122,7 @@ mod tests {
                 weight: 1.0,
             }],
             heel: None,
+            adaptive: false,
         }
     }
 
@@ -200,6 +201,7 @@ mod tests {
             samples_per_side: 4,
             sub_sources: sub_sources(SpotProfile::Uniform, 2.0, k),
             heel: None,
+            adaptive: false,
         };
         let c = coverage(&f, src, &objects, &sampling);
         let row = &c[120..240];

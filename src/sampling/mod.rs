@@ -19,6 +19,7 @@
 //! (`crate::attenuation::sampled`). Sums run in a fixed order (sub-sources in order, then the
 //! samples row by row), so values do not depend on the thread count.
 
+pub mod adaptive;
 pub mod coverage;
 pub mod focal_spot;
 pub mod strip;
@@ -26,7 +27,7 @@ pub mod strip;
 use glam::DVec3;
 
 use crate::geometry::DetectorFrame;
-use crate::scenario::{AxisDirection, Imaging};
+use crate::scenario::{AxisDirection, Imaging, RaySampling};
 
 pub use focal_spot::{SubSource, spot_nodes};
 
@@ -40,6 +41,8 @@ pub struct Sampling {
     pub sub_sources: Vec<SubSource>,
     /// The heel effect, if any.
     pub heel: Option<Heel>,
+    /// Attenuation mode: trace every ray only where the pixel needs it ([`adaptive`]).
+    pub adaptive: bool,
 }
 
 impl Sampling {
@@ -55,6 +58,7 @@ impl Sampling {
                     weight: 1.0,
                 }],
             },
+            adaptive: imaging.ray_sampling.unwrap_or_default() == RaySampling::Adaptive,
             heel: spot.and_then(|f| {
                 f.heel_percent_per_100_mm
                     .filter(|&h| h != 0.0)

@@ -68,6 +68,24 @@ pub struct Imaging {
     /// A finite focal spot (both modes), sampled by k×k sub-sources. Default: a point source.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focal_spot: Option<FocalSpot>,
+    /// Attenuation mode with `pixel_samples` or `focal_spot`: `"adaptive"` (the default) traces
+    /// every ray only for pixels near an edge or a kink, where the one ray to the pixel centre
+    /// would differ from the mean of all rays by more than 0.01 of the pixel's quantum-noise SD
+    /// (estimated); `"full"` traces every ray of every pixel. Binary mode always traces every ray.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ray_sampling: Option<RaySampling>,
+}
+
+/// Which pixels get all their rays (attenuation mode).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RaySampling {
+    /// Only pixels near an edge or a kink; the others take the ray to their centre from the
+    /// spot's centre (`crate::sampling::adaptive`).
+    #[default]
+    Adaptive,
+    /// Every pixel.
+    Full,
 }
 
 /// The intensity profile of a focal spot.

@@ -286,6 +286,7 @@ impl Check<'_> {
             ("mas", im.mas.is_some()),
             ("detector", !im.detector.is_default()),
             ("path_length_layers", im.path_length_layers),
+            ("ray_sampling", im.ray_sampling.is_some()),
         ];
         for (key, given) in imaging_keys {
             if given {

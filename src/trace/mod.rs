@@ -26,9 +26,11 @@ mod path_length;
 mod raster;
 mod shapes;
 mod watertight;
+mod window;
 
 pub use mesh_bvh::MeshBvh;
 pub use path_length::{PathLengths, path_lengths, path_lengths_traced};
+pub use window::Projected;
 
 use glam::DVec3;
 
@@ -168,6 +170,20 @@ impl Object<'_> {
             | Object::Cuboid { pose, .. }
             | Object::EllipticCylinder { pose, .. } => *pose,
         }
+    }
+
+    /// The eight corners (world, mm) of the object's bounding box at its pose: the object lies
+    /// inside their convex hull.
+    pub fn bounding_corners_mm(&self) -> [DVec3; 8] {
+        let (lo, hi) = self.local_bounds();
+        let pose = self.pose();
+        std::array::from_fn(|k| {
+            pose.to_world(DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            ))
+        })
     }
 
     fn local_bounds(&self) -> (DVec3, DVec3) {

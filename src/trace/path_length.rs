@@ -97,13 +97,7 @@ pub fn path_lengths_traced(
             .zip(j0..j1)
             .for_each(|(row, j)| {
                 for (l, i) in row.iter_mut().zip(i0..i1) {
-                    let target = frame.pixel_centre_world(i, j);
-                    *l = match object {
-                        Object::Mesh { bvh, pose } => {
-                            traced_mesh_length_mm(bvh, *pose, source_mm, target)
-                        }
-                        _ => object.chord_mm(source_mm, target).unwrap_or(0.0),
-                    };
+                    *l = traced_length_mm(object, source_mm, frame.pixel_centre_world(i, j));
                 }
             });
     }
@@ -112,6 +106,15 @@ pub fn path_lengths_traced(
         rows: j0..j1,
         length_mm,
     })
+}
+
+/// The length (mm) of the segment `source → target` inside `object`, by ray casting (meshes) or
+/// the chord (analytic solids): one pixel of [`path_lengths_traced`].
+pub(super) fn traced_length_mm(object: &Object, source: DVec3, target: DVec3) -> f64 {
+    match object {
+        Object::Mesh { bvh, pose } => traced_mesh_length_mm(bvh, *pose, source, target),
+        _ => object.chord_mm(source, target).unwrap_or(0.0),
+    }
 }
 
 /// The length of the segment `source → target` inside `mesh` at `pose`, from the sorted crossings
@@ -140,64 +143,153 @@ fn scan_mesh(
     // `centre_range`) only visits pixels of the rectangle.
     let (i0, i1) = centre_range(lo.x, hi.x, w)?;
     let (j0, j1) = centre_range(lo.y, hi.y, h)?;
-    let (i0, j0) = (i0 as usize, j0 as usize);
-    let width = i1 as usize - i0;
-    // Detector frame, as `project_vertices`: the source, the vertices, and the ray offsets
-    // d = p − s of the pixel centres per column (x) and row (y); d.z = −s.z.
-    let to_detector = frame.pose.inverse().compose(&pose);
-    let s = frame.pose.to_local(source_mm);
-    let vertices: Vec<DVec3> = mesh
-        .vertices_mm
-        .iter()
-        .map(|&v| to_detector.to_world(v))
-        .collect();
-    let dx: Vec<f64> = (i0..i1 as usize)
-        .map(|i| frame.pixel_local(i as f64 + 0.5, 0.0).x - s.x)
-        .collect();
-    let dy: Vec<f64> = (j0..j1 as usize)
-        .map(|j| frame.pixel_local(0.0, j as f64 + 0.5).y - s.y)
-        .collect();
-    let outward = mesh.facing == raster::Faces::Outward;
-    // Σ_back τ − Σ_front τ per pixel of the rectangle.
-    let mut depth = vec![0.0f64; width * dy.len()];
-    for face in &mesh.faces {
-        let [a, b, c] = face.map(|k| uv_px[k as usize]);
-        let area = (b - a).perp_dot(c - a);
-        if area == 0.0 {
-            continue;
-        }
-        // Front faces (facing the source) are entries: positive projected area when the mesh is
-        // wound outward (raster.rs, `Faces`).
-        let weight = if (area > 0.0) == outward { -1.0 } else { 1.0 };
-        let (b, c) = if area > 0.0 { (b, c) } else { (c, b) };
-        let [pa, pb, pc] = face.map(|k| vertices[k as usize]);
-        let n = (pb - pa).cross(pc - pa);
-        let numerator = weight * n.dot(pa - s);
-        scan_triangle(w, h, a, b, c, |row, first, end| {
-            let r = row - j0;
-            let row_term = n.y * dy[r] - n.z * s.z;
-            let line = &mut depth[r * width..(r + 1) * width];
-            for (acc, &x) in line[first - i0..end - i0]
-                .iter_mut()
-                .zip(&dx[first - i0..end - i0])
-            {
-                *acc += numerator / (n.x * x + row_term);
-            }
-        });
-    }
-    for (r, line) in depth.chunks_exact_mut(width).enumerate() {
-        let yz = dy[r] * dy[r] + s.z * s.z;
-        for (acc, &x) in line.iter_mut().zip(&dx) {
-            if *acc != 0.0 {
-                *acc = (*acc * (x * x + yz).sqrt()).max(0.0);
-            }
-        }
-    }
+    let depth = MeshDepth::new(frame, source_mm, mesh, pose, uv_px);
+    let (columns, rows) = (i0 as usize..i1 as usize, j0 as usize..j1 as usize);
+    let length_mm = depth.lengths(
+        mesh.faces.iter(),
+        DVec2::ZERO,
+        [w, h],
+        columns.clone(),
+        rows.clone(),
+    );
     Some(PathLengths {
-        columns: i0 as u32..i1 as u32,
-        rows: j0 as u32..j1 as u32,
-        length_mm: depth,
+        columns: columns.start as u32..columns.end as u32,
+        rows: rows.start as u32..rows.end as u32,
+        length_mm,
     })
+}
+
+/// A closed mesh in a detector's frame, its vertices projected: what scan conversion with depth
+/// needs, for the whole frame ([`scan_mesh`]) or for windows of it (`super::window`).
+pub(super) struct MeshDepth<'a> {
+    frame: &'a DetectorFrame,
+    mesh: &'a MeshBvh,
+    /// The source in the detector frame.
+    s: DVec3,
+    /// The vertices in the detector frame.
+    vertices: std::borrow::Cow<'a, [DVec3]>,
+    /// The vertices' continuous pixel coordinates.
+    uv_px: &'a [DVec2],
+}
+
+impl<'a> MeshDepth<'a> {
+    /// The mesh at `pose` seen from `source_mm` on `frame`, its vertices projected to `uv_px`
+    /// ([`raster::project_vertices`]).
+    pub(super) fn new(
+        frame: &'a DetectorFrame,
+        source_mm: DVec3,
+        mesh: &'a MeshBvh,
+        pose: Pose,
+        uv_px: &'a [DVec2],
+    ) -> Self {
+        let to_detector = frame.pose.inverse().compose(&pose);
+        MeshDepth {
+            frame,
+            mesh,
+            s: frame.pose.to_local(source_mm),
+            vertices: mesh
+                .vertices_mm
+                .iter()
+                .map(|&v| to_detector.to_world(v))
+                .collect::<Vec<_>>()
+                .into(),
+            uv_px,
+        }
+    }
+
+    /// The vertices in the detector frame (mm), for [`MeshDepth::with_vertices`].
+    pub(super) fn into_vertices(self) -> Vec<DVec3> {
+        self.vertices.into_owned()
+    }
+
+    /// The same mesh again, its vertices already in the detector frame (from
+    /// [`MeshDepth::into_vertices`] of the same frame, source and pose).
+    pub(super) fn with_vertices(
+        frame: &'a DetectorFrame,
+        source_mm: DVec3,
+        mesh: &'a MeshBvh,
+        vertices: &'a [DVec3],
+        uv_px: &'a [DVec2],
+    ) -> Self {
+        MeshDepth {
+            frame,
+            mesh,
+            s: frame.pose.to_local(source_mm),
+            vertices: vertices.into(),
+            uv_px,
+        }
+    }
+
+    /// The path lengths (mm, row-major) of the frame's pixels `columns × rows` through `faces`:
+    /// per pixel `Σ_back τ − Σ_front τ` times the ray's length, clamped at 0 (see the module
+    /// docs). The faces are scan-converted on a grid of `grid` pixels whose pixel (0, 0) is the
+    /// frame's pixel `offset` (the vertices' coordinates are shifted by it), and only rows and
+    /// columns of the rectangle (in grid coordinates: shifted by `offset` too) are visited.
+    pub(super) fn lengths<'f>(
+        &self,
+        faces: impl Iterator<Item = &'f [u32; 3]>,
+        offset: DVec2,
+        grid: [u32; 2],
+        columns: Range<usize>,
+        rows: Range<usize>,
+    ) -> Vec<f64> {
+        let (ox, oy) = (offset.x as usize, offset.y as usize);
+        let s = self.s;
+        // The ray offsets d = p − s of the pixel centres per column (x) and row (y); d.z = −s.z.
+        let dx: Vec<f64> = columns
+            .clone()
+            .map(|i| self.frame.pixel_local((i + ox) as f64 + 0.5, 0.0).x - s.x)
+            .collect();
+        let dy: Vec<f64> = rows
+            .clone()
+            .map(|j| self.frame.pixel_local(0.0, (j + oy) as f64 + 0.5).y - s.y)
+            .collect();
+        let (i0, j0, width) = (columns.start, rows.start, columns.len());
+        let outward = self.mesh.facing == raster::Faces::Outward;
+        // Σ_back τ − Σ_front τ per pixel of the rectangle.
+        let mut depth = vec![0.0f64; width * dy.len()];
+        for face in faces {
+            let [a, b, c] = face.map(|k| self.uv_px[k as usize] - offset);
+            let area = (b - a).perp_dot(c - a);
+            if area == 0.0 {
+                continue;
+            }
+            // Front faces (facing the source) are entries: positive projected area when the mesh
+            // is wound outward (raster.rs, `Faces`).
+            let weight = if (area > 0.0) == outward { -1.0 } else { 1.0 };
+            let (b, c) = if area > 0.0 { (b, c) } else { (c, b) };
+            let [pa, pb, pc] = face.map(|k| self.vertices[k as usize]);
+            let n = (pb - pa).cross(pc - pa);
+            let numerator = weight * n.dot(pa - s);
+            scan_triangle(grid[0], grid[1], a, b, c, |row, first, end| {
+                if !rows.contains(&row) {
+                    return;
+                }
+                let (first, end) = (first.max(i0), end.min(columns.end));
+                if first >= end {
+                    return;
+                }
+                let r = row - j0;
+                let row_term = n.y * dy[r] - n.z * s.z;
+                let line = &mut depth[r * width..(r + 1) * width];
+                for (acc, &x) in line[first - i0..end - i0]
+                    .iter_mut()
+                    .zip(&dx[first - i0..end - i0])
+                {
+                    *acc += numerator / (n.x * x + row_term);
+                }
+            });
+        }
+        for (r, line) in depth.chunks_exact_mut(width.max(1)).enumerate() {
+            let yz = dy[r] * dy[r] + s.z * s.z;
+            for (acc, &x) in line.iter_mut().zip(&dx) {
+                if *acc != 0.0 {
+                    *acc = (*acc * (x * x + yz).sqrt()).max(0.0);
+                }
+            }
+        }
+        depth
+    }
 }
 
 #[cfg(test)]
