@@ -242,14 +242,11 @@ fn hides_beads(s: &crate::scenario::Scenario, model: &PhantomModel) -> bool {
     if !s.imaging.is_attenuation() {
         return true;
     }
-    let Some(name) = model.volumes.first().and_then(|v| v.material.as_deref()) else {
-        return false;
-    };
-    let density = match s.materials.get(name) {
-        Some(user) => user.density_g_cm3,
-        None => crate::material::by_name(name).map_or(0.0, |m| m.density_g_cm3),
-    };
-    density >= crate::material::METAL_DENSITY_G_CM3
+    model
+        .volumes
+        .first()
+        .and_then(|v| v.material.as_deref())
+        .is_some_and(|name| s.is_metal(name))
 }
 
 /// The key of a phantom's `k`-th bead, for beads the user listed; the phantom's id otherwise.

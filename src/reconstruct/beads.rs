@@ -16,7 +16,8 @@
 //!    inside the window (a plate's edge or a bone ridge runs out of it) — their count is the
 //!    blob's area, which the matching then compares with a bead's.
 //! 5. **Metal**: a candidate whose window touches the metal shadow (a large clipped component,
-//!    [`metal_mask`]) is not a bead: its centre cannot be measured. It is dropped, so the bead
+//!    [`metal_mask`], and in an image of a metal implant its dense shadow, clipped or not,
+//!    [`implant_metal_mask`]) is not a bead: its centre cannot be measured. It is dropped, so the bead
 //!    behind it is reported occluded (by the caller) instead of being matched to a wrong blob.
 //! 6. **Sub-pixel centre**: the background is a plane fitted to the ring (refitted once without
 //!    pixels off by more than 3 noise SDs: a bone edge or a neighbour); the intensity centroid of
@@ -29,6 +30,7 @@ use glam::DVec2;
 
 use super::density::Density;
 use super::detect::Blob;
+use super::shadow::dense_shadow;
 
 /// Candidates must exceed the matched filter's noise this many times.
 pub const MIN_SNR: f64 = 6.0;
@@ -150,6 +152,24 @@ pub fn metal_mask(img: &Density, min_area: usize) -> Vec<bool> {
         .iter()
         .map(|&l| l > 0 && big[l as usize - 1])
         .collect()
+}
+
+/// The metal shadow of an image known to show a metal implant: [`metal_mask`]'s clipped
+/// components, and the implant's dense shadow ([`dense_shadow`], with the implant's
+/// `expected_area_px` if known) when it covers at least `min_area` pixels. Unlike clipping, this
+/// also finds an implant whose shadow the scatter veil lifts below the top of the range.
+pub fn implant_metal_mask(
+    img: &Density,
+    min_area: usize,
+    expected_area_px: Option<f64>,
+) -> Vec<bool> {
+    let mut mask = metal_mask(img, min_area);
+    if let Some(shadow) = dense_shadow(img, expected_area_px).filter(|s| s.blob.area >= min_area) {
+        for (m, s) in mask.iter_mut().zip(&shadow.mask) {
+            *m |= *s;
+        }
+    }
+    mask
 }
 
 /// Whether any pixel of `mask` (row-major, `width` wide) lies within `radius_px` of `uv`

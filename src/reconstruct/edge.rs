@@ -1,50 +1,115 @@
 //! The model's outline in an attenuation-mode image, where its edge is graded: partial pixels,
-//! focal-spot penumbra and detector blur spread it over a few pixels.
+//! focal-spot penumbra, detector blur and the scatter veil spread it over a few pixels.
 //!
-//! 1. **Segmentation**: the implant is far denser than anything around it. Its shadow is the
-//!    largest 8-connected component of pixels whose attenuation is at least half-way between its
-//!    surroundings and the implant's plateau (the image's 99.5th percentile). The surroundings
-//!    are first the image's median, then twice the median of the pixels within [`RING_PX`] of
-//!    the component found (bone next to the implant merges with it at the first level, never at
-//!    the second). The component only seeds the edge search and the coarse pose search; the
-//!    edge's position comes from step 2.
+//! 1. **Segmentation**: the implant's shadow is the densest large component of the image,
+//!    separated from its own neighbourhood by a two-class split ([`super::shadow`]); clipping is
+//!    not needed. The component only seeds the edge search and the coarse pose search; the edge's
+//!    position comes from step 2.
 //! 2. **Edge points**: for every pair of horizontally or vertically neighbouring pixels of which
 //!    exactly one is in the shadow, and whose row or column crosses the edge within 45° of its
 //!    normal (the transmission's Sobel gradient), the profile along that row or column is read in
-//!    *transmission* `S/S_open` (where blur is linear): the local plateau is the median of the
-//!    inside pixels [`NEAR_PX`]..=[`FAR_PX`] from the pair, the local background the median of
-//!    the outside ones, and the edge is where the profile crosses the level half-way between
-//!    them, by linear interpolation between pixel centres, searched within [`SEARCH_PX`] of the
-//!    pair; the levels are then read again from that crossing and the crossing found again
-//!    (the segmentation's level may lie a few pixels inside a blurred edge). A symmetric blur of a straight edge crosses that level exactly at the edge, so the
-//!    points are unbiased under it; on a sharp image the crossing is the pair's midpoint, as in
-//!    binary mode. A pair whose local step is not an implant's (inside transmission above
-//!    [`MAX_INSIDE_FRACTION`] of the outside) gives no point: a bead or bone touching the
-//!    shadow is not its edge.
+//!    *transmission* `S/S_open` (where blur, and the scatter veil, are linear): the local plateau
+//!    is the median of the inside pixels [`EdgeWindows::near_px`]..=[`EdgeWindows::far_px`] from
+//!    the pair, the local background the median of the outside ones, and the edge is where the
+//!    profile crosses the level half-way between them, by linear interpolation between pixel
+//!    centres, searched within [`EdgeWindows::search_px`] of the pair; the levels are then read
+//!    again from that crossing and the crossing found again (the segmentation's level may lie a
+//!    few pixels inside a blurred edge). A symmetric blur of a straight edge crosses that level
+//!    exactly at the edge, and a smooth additive veil (scatter) moves both levels alike, so the
+//!    points are unbiased under both; on a sharp image the crossing is the pair's midpoint, as
+//!    in binary mode. A pair whose local levels do not straddle the segmentation's level (the
+//!    plateau denser than it, the background less dense), or whose local step is less than
+//!    [`MAX_INSIDE_FRACTION`] in transmission, gives no point: a bead or bone touching the
+//!    shadow, a hole of noise in it, or a threshold inside the shadow's gentle dome is not its
+//!    edge.
 
 use glam::DVec2;
 
 use super::contour::Outline;
 use super::density::Density;
-use super::detect::{Blob, components};
+use super::shadow::dense_shadow;
+use crate::scenario::{Imaging, SpotProfile};
 
-/// Profile samples nearer than this to the pair (pixels) are in the graded edge.
-pub const NEAR_PX: usize = 3;
-/// Profile samples up to this far from the pair (pixels) give the local levels.
-pub const FAR_PX: usize = 6;
-/// The crossing is searched this far (pixels) on both sides of the pair.
-pub const SEARCH_PX: usize = 5;
-/// The implant's local plateau transmits at most this fraction of its local background.
-pub const MAX_INSIDE_FRACTION: f64 = 0.5;
+/// The implant's local plateau transmits at most this fraction of its local background (a step
+/// of at least 0.3 in attenuation): a threshold lying inside the gently graded shadow of a
+/// scatter-lifted implant gives no edge points there.
+pub const MAX_INSIDE_FRACTION: f64 = 0.74;
 
-/// The largest dense component of `img` (module docs), with its sub-pixel edge points. `None`
-/// when the image has no dense component.
-pub fn graded_outline(img: &Density) -> Option<Outline> {
+/// Where the local levels of an edge profile are read and how far its crossing is searched,
+/// pixels from the current edge estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EdgeWindows {
+    /// Profile samples nearer than this lie in the graded edge.
+    pub near_px: usize,
+    /// Profile samples from `near_px` up to this far give the local levels.
+    pub far_px: usize,
+    /// The crossing is searched this far on both sides of the pair.
+    pub search_px: usize,
+}
+
+impl EdgeWindows {
+    /// The windows for edges of sharp images and blurs up to σ ≈ 1.5 px: levels 3–6 px from the
+    /// edge, crossing within 5 px.
+    pub const SHARP: EdgeWindows = EdgeWindows {
+        near_px: 3,
+        far_px: 6,
+        search_px: 5,
+    };
+
+    /// The windows for a model's edges under the nominal `imaging` settings, on pixels of
+    /// `pitch_mm`, for an object whose distance from the detector is `magnified_fraction` times
+    /// its distance from the source (object-to-detector over source-to-object): the standard
+    /// deviations of the detector's Gaussian PSF, of the focal spot's projected penumbra
+    /// (a uniform spot of side a: a/√12; a Gaussian of FWHM a: a/2.3548; times
+    /// `magnified_fraction`) and of the pixel's own area (1/√12 px) add in quadrature. An MTF
+    /// table is not read (its blur is taken as none).
+    pub fn for_imaging(imaging: &Imaging, pitch_mm: f64, magnified_fraction: f64) -> EdgeWindows {
+        let psf_mm = imaging.detector.psf.as_ref().map_or(0.0, |p| p.sigma_mm);
+        let spot_mm = imaging
+            .focal_spot
+            .as_ref()
+            .map_or(0.0, |f| match f.profile {
+                SpotProfile::Uniform => f.size_mm / 12f64.sqrt(),
+                SpotProfile::Gaussian => f.size_mm / 2.3548,
+            })
+            * magnified_fraction.max(0.0);
+        let sigma_px =
+            ((psf_mm * psf_mm + spot_mm * spot_mm) / (pitch_mm * pitch_mm) + 1.0 / 12.0).sqrt();
+        EdgeWindows::for_blur(sigma_px)
+    }
+
+    /// The windows for an edge blurred by a total standard deviation of `sigma_px` pixels: the
+    /// levels are read from 2σ beyond the edge (at least 3 px, where a Gaussian edge has
+    /// reached 98 % of its step) over 4 px, the crossing searched as far as the levels start
+    /// plus 2 px. Sharp or mildly blurred images (σ ≤ 1.5 px) get [`EdgeWindows::SHARP`].
+    pub fn for_blur(sigma_px: f64) -> EdgeWindows {
+        let near = if sigma_px.is_finite() {
+            (2.0 * sigma_px).ceil().clamp(3.0, 30.0) as usize
+        } else {
+            3
+        };
+        EdgeWindows {
+            near_px: near,
+            far_px: near + 3,
+            search_px: near + 2,
+        }
+    }
+}
+
+/// The implant's dense shadow in `img` (module docs; `expected_area_px`: see
+/// [`dense_shadow`]), with its sub-pixel edge points measured with `windows`. `None` when the
+/// image has no dense component.
+pub fn graded_outline(
+    img: &Density,
+    windows: EdgeWindows,
+    expected_area_px: Option<f64>,
+) -> Option<Outline> {
     let (w, h) = (img.width, img.height);
     if w < 2 || h < 2 {
         return None;
     }
-    let (mask, largest) = segment(img)?;
+    let shadow = dense_shadow(img, expected_area_px)?;
+    let (mask, largest, level) = (shadow.mask, shadow.blob, shadow.level);
     let [i0, j0, i1, j1] = largest.bbox.map(|v| v as usize);
     let mut edge_points = Vec::new();
     for j in j0.saturating_sub(1)..=(j1 + 1).min(h - 1) {
@@ -56,7 +121,7 @@ pub fn graded_outline(img: &Density) -> Option<Outline> {
                     (x >= 0 && (x as usize) < w)
                         .then(|| (img.transmission(x as usize, j), mask[j * w + x as usize]))
                 };
-                if let Some(u) = crossing(profile, here) {
+                if let Some(u) = crossing(profile, here, level, windows) {
                     edge_points.push(DVec2::new(i as f64 + 0.5 + u, j as f64 + 0.5));
                 }
             }
@@ -66,7 +131,7 @@ pub fn graded_outline(img: &Density) -> Option<Outline> {
                     (y >= 0 && (y as usize) < h)
                         .then(|| (img.transmission(i, y as usize), mask[y as usize * w + i]))
                 };
-                if let Some(v) = crossing(profile, here) {
+                if let Some(v) = crossing(profile, here, level, windows) {
                     edge_points.push(DVec2::new(i as f64 + 0.5, j as f64 + 0.5 + v));
                 }
             }
@@ -80,78 +145,6 @@ pub fn graded_outline(img: &Density) -> Option<Outline> {
         centroid: largest.centroid,
         edge_points,
     })
-}
-
-/// Pixels within this many pixels of the shadow (outside it) give its surroundings' level.
-const RING_PX: usize = 8;
-
-/// The implant's shadow (module docs, step 1) and its component.
-fn segment(img: &Density) -> Option<(Vec<bool>, Blob)> {
-    let (w, h) = (img.width, img.height);
-    let mut sorted = img.values.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let plateau = sorted[(sorted.len() * 995) / 1000];
-    if !(plateau > median) {
-        return None;
-    }
-    let largest = |level: f64| -> Option<(Vec<bool>, Blob)> {
-        let dense: Vec<u16> = img.values.iter().map(|&v| u16::from(v >= level)).collect();
-        let (labels, blobs) = components(&dense, w, 1);
-        let (index, blob) = blobs.iter().enumerate().max_by_key(|(_, b)| b.area)?;
-        let id = index as u32 + 1;
-        Some((labels.iter().map(|&l| l == id).collect(), blob.clone()))
-    };
-    let mut found = largest(0.5 * (median + plateau))?;
-    for _ in 0..2 {
-        let near = dilate(&found.0, w, h, RING_PX);
-        let mut ring: Vec<f64> = (0..w * h)
-            .filter(|&k| near[k] && !found.0[k])
-            .map(|k| img.values[k])
-            .collect();
-        if ring.is_empty() {
-            break;
-        }
-        let mid = ring.len() / 2;
-        let surroundings = *ring.select_nth_unstable_by(mid, f64::total_cmp).1;
-        if !(plateau > surroundings) {
-            break;
-        }
-        found = largest(0.5 * (surroundings + plateau))?;
-    }
-    Some(found)
-}
-
-/// `mask` dilated by a square of half-size `r` (separable running counts).
-fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let pass = |src: &[bool], horizontal: bool| -> Vec<bool> {
-        let (n, lines) = if horizontal { (w, h) } else { (h, w) };
-        let at = |line: usize, k: usize| {
-            if horizontal {
-                line * w + k
-            } else {
-                k * w + line
-            }
-        };
-        let mut out = vec![false; w * h];
-        for line in 0..lines {
-            let mut count = 0usize;
-            for k in 0..(r).min(n) {
-                count += usize::from(src[at(line, k)]);
-            }
-            for k in 0..n {
-                if k + r < n {
-                    count += usize::from(src[at(line, k + r)]);
-                }
-                if k > r {
-                    count -= usize::from(src[at(line, k - r - 1)]);
-                }
-                out[at(line, k)] = count > 0;
-            }
-        }
-        out
-    };
-    pass(&pass(mask, true), false)
 }
 
 /// Whether the line through the neighbouring pixels (i0, j0) and (i1, j1) runs within 45° of
@@ -183,15 +176,22 @@ fn sobel(img: &Density, i: usize, j: usize) -> DVec2 {
 /// The sub-pixel offset from pixel 0's centre (towards pixel 1) where the transmission profile
 /// crosses the local half-way level, for a pair (0, 1) of which pixel 0 is inside iff
 /// `first_inside`. `profile(k)` is pixel k's transmission and whether it is in the shadow, or
-/// `None` off the image.
+/// `None` off the image. `level` is the segmentation's attenuation level: the local plateau must
+/// lie above it and the local background below it.
 ///
-/// The levels are read [`NEAR_PX`]..=[`FAR_PX`] from the current edge estimate (first the pair's
-/// boundary, then the crossing found), so a shadow mask that sits a few pixels inside a blurred
-/// edge still yields the edge's half-way crossing.
-fn crossing(profile: impl Fn(i64) -> Option<(f64, bool)>, first_inside: bool) -> Option<f64> {
+/// The levels are read `windows.near_px..=windows.far_px` from the current edge estimate (first
+/// the pair's boundary, then the crossing found), so a shadow mask that sits a few pixels inside
+/// a blurred edge still yields the edge's half-way crossing.
+fn crossing(
+    profile: impl Fn(i64) -> Option<(f64, bool)>,
+    first_inside: bool,
+    level: f64,
+    windows: EdgeWindows,
+) -> Option<f64> {
     let outward = if first_inside { 1.0 } else { -1.0 };
-    let reach = (SEARCH_PX + FAR_PX + 1) as i64;
-    let (near, far) = (NEAR_PX as f64, FAR_PX as f64);
+    let reach = (windows.search_px + windows.far_px + 1) as i64;
+    let (near, far) = (windows.near_px as f64, windows.far_px as f64);
+    let t_level = libm::exp(-level);
     let median = |mut v: Vec<f64>| -> Option<f64> {
         if v.len() < 2 {
             return None;
@@ -215,13 +215,13 @@ fn crossing(profile: impl Fn(i64) -> Option<(f64, bool)>, first_inside: bool) ->
             }
         }
         let (t_in, t_out) = (median(inside)?, median(outside)?);
-        if !(t_in <= MAX_INSIDE_FRACTION * t_out) {
+        if !(t_in <= t_level && t_level <= t_out && t_in <= MAX_INSIDE_FRACTION * t_out) {
             return None;
         }
         let half = 0.5 * (t_in + t_out);
         // Crossings of `half` between consecutive pixels k, k+1 within the search span of the
         // pair; the one nearest the current estimate wins.
-        let span = SEARCH_PX as i64;
+        let span = windows.search_px as i64;
         let mut best: Option<(f64, f64)> = None;
         for k in -span..=span {
             let (Some((a, _)), Some((b, _))) = (profile(k), profile(k + 1)) else {
@@ -290,7 +290,7 @@ mod tests {
     #[test]
     fn a_sharp_disc_outline_is_unbiased() {
         let c = DVec2::new(60.3, 55.8);
-        let o = graded_outline(&disc(120, 110, c, 30.2, 0.0)).unwrap();
+        let o = graded_outline(&disc(120, 110, c, 30.2, 0.0), EdgeWindows::SHARP, None).unwrap();
         let r = mean_radius(&o, c);
         assert!((r - 30.2).abs() < 0.03, "{r}");
     }
@@ -303,7 +303,8 @@ mod tests {
         // at the segmentation's level would sit 2.8σ inside the edge.)
         let c = DVec2::new(60.3, 55.8);
         for sigma in [0.5, 0.8, 1.0, 1.5] {
-            let o = graded_outline(&disc(120, 110, c, 30.2, sigma)).unwrap();
+            let o =
+                graded_outline(&disc(120, 110, c, 30.2, sigma), EdgeWindows::SHARP, None).unwrap();
             let r = mean_radius(&o, c);
             let n = o.edge_points.len() as f64;
             let sd = (o
@@ -317,6 +318,84 @@ mod tests {
             assert!((r - expected).abs() < 0.03, "σ {sigma}: {r} vs {expected}");
             assert!(sd < 0.05 && n > 140.0, "σ {sigma}: SD {sd} over {n} points");
         }
+    }
+
+    /// `img` with an additive scatter veil of `veil` (a fraction of the open field) in
+    /// transmission: the metal then reads `−ln(veil)` instead of clipping.
+    fn with_veil(img: &Density, veil: f64) -> Density {
+        Density {
+            values: img
+                .values
+                .iter()
+                .map(|v| -libm::log(libm::exp(-v) + veil))
+                .collect(),
+            ..img.clone()
+        }
+    }
+
+    #[test]
+    fn a_scatter_veil_leaves_the_outline_on_the_edge() {
+        // A veil of 3 % of the open field lifts the disc from 9 to 3.5 and the background from
+        // 2 to 1.8; the half-way crossing in transmission does not move.
+        let c = DVec2::new(60.3, 55.8);
+        for sigma in [0.0, 1.0] {
+            let sharp = disc(120, 110, c, 30.2, 0.0);
+            let veiled = with_veil(&sharp, 0.03);
+            let img = if sigma > 0.0 {
+                veiled.blurred(sigma)
+            } else {
+                veiled
+            };
+            let o = graded_outline(&img, EdgeWindows::SHARP, None).unwrap();
+            let r = mean_radius(&o, c);
+            let expected = 30.2 - sigma * sigma / (2.0 * 30.2);
+            assert!(
+                (r - expected).abs() < 0.03 && o.edge_points.len() > 140,
+                "σ {sigma}: {r} vs {expected} over {} points",
+                o.edge_points.len()
+            );
+        }
+    }
+
+    #[test]
+    fn windows_widened_for_the_blur_keep_a_blurred_outline_unbiased() {
+        // σ = 2.5 px: levels read 3–6 px from the edge still lie in its graded part; the
+        // windows for that blur (5–8 px) lie beyond it.
+        let c = DVec2::new(60.3, 55.8);
+        let sigma = 2.5;
+        let img = disc(120, 110, c, 30.2, sigma);
+        let expected = 30.2 - sigma * sigma / (2.0 * 30.2);
+        let wide = EdgeWindows::for_blur(sigma);
+        assert_eq!((wide.near_px, wide.far_px, wide.search_px), (5, 8, 7));
+        let r_wide = mean_radius(&graded_outline(&img, wide, None).unwrap(), c);
+        let r_sharp = mean_radius(&graded_outline(&img, EdgeWindows::SHARP, None).unwrap(), c);
+        // Measured: 0.11 px inside with the wide windows, 0.93 px with the sharp ones.
+        assert!((r_wide - expected).abs() < 0.15, "{r_wide} vs {expected}");
+        assert!(
+            (r_sharp - expected).abs() > 5.0 * (r_wide - expected).abs(),
+            "{r_sharp}"
+        );
+    }
+
+    #[test]
+    fn the_windows_follow_the_nominal_blur() {
+        // biplanar_realistic_blurred: σ 0.15 mm PSF, 1.2 mm uniform spot, 0.2986 mm pixels,
+        // model 500 mm from the detector and 1300 mm from the source: σ ≈ 0.73 px, the sharp
+        // windows; a 2 mm PSF asks for wider ones.
+        let mut imaging: Imaging = toml::from_str(
+            "mode = \"attenuation\"\nfocal_spot = { size_mm = 1.2 }\n[detector]\npsf = { sigma_mm = 0.15 }\n",
+        )
+        .unwrap();
+        assert_eq!(
+            EdgeWindows::for_imaging(&imaging, 0.2986, 500.0 / 1300.0),
+            EdgeWindows::SHARP
+        );
+        imaging.detector.psf = Some(crate::scenario::PsfOption { sigma_mm: 1.0 });
+        // σ = √((1.0² + (0.346·0.385)²)/0.2986² + 1/12) = 3.39 px → levels from 7 px.
+        assert_eq!(
+            EdgeWindows::for_imaging(&imaging, 0.2986, 500.0 / 1300.0).near_px,
+            7
+        );
     }
 
     #[test]
@@ -346,7 +425,7 @@ mod tests {
             clipped: values.iter().map(|&v| v >= 7.0).collect(),
             values,
         };
-        let o = graded_outline(&img).unwrap();
+        let o = graded_outline(&img, EdgeWindows::SHARP, None).unwrap();
         let disc_area = std::f64::consts::PI * 400.0;
         assert!(
             (o.area as f64 - disc_area).abs() < 0.03 * disc_area,

@@ -16,6 +16,7 @@ pub mod model_outline;
 pub mod pipeline;
 pub mod rigid;
 pub mod selvik;
+pub mod shadow;
 pub mod silhouette;
 
 use std::collections::BTreeMap;

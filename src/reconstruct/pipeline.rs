@@ -7,13 +7,13 @@ use std::path::Path;
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::beads::{find_beads, metal_mask, touches};
+use super::beads::{find_beads, implant_metal_mask, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::density::{Reading, density};
 use super::detect::{Blob, blobs};
-use super::edge::graded_outline;
+use super::edge::{EdgeWindows, graded_outline};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
@@ -27,6 +27,7 @@ use crate::output::measured::{
     OccludedBead,
 };
 use crate::scenario::PlateRole;
+use crate::trace::{MeshBvh, Object, render_binary};
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
 const SEARCH_PX: f64 = 150.0;
@@ -210,7 +211,14 @@ pub fn reconstruct_run(
             })
             .collect();
         let fit = |matches: &[Match]| fit_beamline(method, matches, box_beads, &plates, &uses, det);
-        let image = BeadImage::read(setup, det, &pixels, w as usize, mean_radius_px(&preds));
+        let image = BeadImage::read(
+            setup,
+            det,
+            &pixels,
+            w as usize,
+            mean_radius_px(&preds),
+            implant_in(setup, &exposure.id, &frame, source),
+        );
         match calibrate_beamline(&facing, &preds, &image, box_beads, det, fit) {
             Ok(c) => {
                 beamlines.insert(det.id.clone(), (c, det));
@@ -504,20 +512,23 @@ fn calibrate_beamline(
 struct BeadImage {
     /// Bead candidates: blobs at I_max (binary mode) or [`find_beads`]'s beads.
     blobs: Vec<Blob>,
-    /// The metal shadow ([`metal_mask`]), row-major; empty in binary mode.
+    /// The metal shadow ([`implant_metal_mask`] in an image of a metal implant, else the clipped
+    /// components only), row-major; empty in binary mode.
     metal: Vec<bool>,
     /// Image width, pixels.
     width: usize,
 }
 
 impl BeadImage {
-    /// The candidates of one image of detector `det` for beads of about `radius_px` pixels.
+    /// The candidates of one image of detector `det` for beads of about `radius_px` pixels;
+    /// `implant`: the metal implant the image shows ([`implant_in`]).
     fn read(
         setup: &Setup,
         det: &DetectorState,
         pixels: &[u16],
         width: usize,
         radius_px: f64,
+        implant: Option<Implant>,
     ) -> BeadImage {
         let imaging = &setup.scenario.imaging;
         if !imaging.is_attenuation() {
@@ -529,7 +540,11 @@ impl BeadImage {
         }
         let img = density(pixels, width, Reading::of(imaging, det.i_max()));
         let bead_area = std::f64::consts::PI * radius_px * radius_px;
-        let metal = metal_mask(&img, (METAL_BEAD_AREAS * bead_area).max(50.0) as usize);
+        let min_area = (METAL_BEAD_AREAS * bead_area).max(50.0) as usize;
+        let metal = match implant {
+            Some(i) => implant_metal_mask(&img, min_area, i.expected_area_px),
+            None => metal_mask(&img, min_area),
+        };
         BeadImage {
             blobs: find_beads(&img, radius_px, &metal),
             metal,
@@ -544,7 +559,75 @@ impl BeadImage {
     }
 }
 
-/// A clipped component is metal when it is at least this many beads' areas.
+/// A metal implant known to be in an image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Implant {
+    /// The area its shadow should cover (pixels), from its meshes at their nominal poses; `None`
+    /// when it has no mesh.
+    expected_area_px: Option<f64>,
+}
+
+/// The metal implant in the image of `exposure` taken on `frame` from `source_mm`: `None` when
+/// the exposure shows no phantom of metal ([`crate::scenario::Scenario::is_metal`]). The
+/// operator knows when an implant is in the picture, and only then is a dense shadow that does
+/// not clip taken for metal: an acrylic plate seen edge-on is as dense, and must not hide its
+/// beads. The expected area is that of the metal meshes' shadow at their nominal poses,
+/// rendered at a quarter of the resolution.
+fn implant_in(
+    setup: &Setup,
+    exposure: &str,
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+) -> Option<Implant> {
+    let scenario = &setup.scenario;
+    let exposure = scenario.exposures.iter().find(|e| e.id == exposure)?;
+    let metal: Vec<&str> = scenario
+        .phantoms
+        .iter()
+        .filter(|p| {
+            exposure.phantoms.contains(&p.id)
+                && p.material.as_deref().is_some_and(|m| scenario.is_metal(m))
+        })
+        .map(|p| p.id.as_str())
+        .collect();
+    if metal.is_empty() {
+        return None;
+    }
+    let bvhs: Vec<(MeshBvh, Pose)> = metal
+        .iter()
+        .filter_map(|id| {
+            let mesh = setup.meshes.get(*id)?;
+            let pose = setup.nominal.phantoms.iter().find(|p| p.id == *id)?.pose();
+            Some((MeshBvh::new(mesh), pose))
+        })
+        .collect();
+    if bvhs.is_empty() {
+        return Some(Implant {
+            expected_area_px: None,
+        });
+    }
+    let coarse = DetectorFrame {
+        pixels: frame.pixels.map(|n| n.div_ceil(COARSE_RENDER)),
+        pixel_pitch_mm: frame.pixel_pitch_mm.map(|p| p * f64::from(COARSE_RENDER)),
+        ..*frame
+    };
+    let objects: Vec<Object> = bvhs
+        .iter()
+        .map(|(bvh, pose)| Object::Mesh { bvh, pose: *pose })
+        .collect();
+    let covered = render_binary(&coarse, source_mm, &objects, 1)
+        .iter()
+        .filter(|&&v| v != 0)
+        .count();
+    Some(Implant {
+        expected_area_px: Some(covered as f64 * f64::from(COARSE_RENDER * COARSE_RENDER)),
+    })
+}
+
+/// The expected implant area is rendered at one pixel per this many pixels along each axis.
+const COARSE_RENDER: u32 = 4;
+
+/// A clipped component or an implant's shadow is metal when it is at least this many beads' areas.
 const METAL_BEAD_AREAS: f64 = 20.0;
 
 /// The radius (pixels) of the mean expected bead area of `preds` (1 px when there are none).
@@ -579,7 +662,14 @@ fn find_model(
         let diameter = beads.iter().map(|b| b.diameter_mm).fold(0.0, f64::max);
         let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
         let expected = std::f64::consts::PI * radius_px * radius_px;
-        let image = BeadImage::read(setup, det, &px, w as usize, radius_px);
+        let image = BeadImage::read(
+            setup,
+            det,
+            &px,
+            w as usize,
+            radius_px,
+            implant_in(setup, exposure, &frame, c.beamline.source_mm),
+        );
         let candidates = image
             .blobs
             .iter()
@@ -663,17 +753,29 @@ fn find_model_by_outline(
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
         let imaging = &setup.scenario.imaging;
+        let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let found = if imaging.is_attenuation() {
-            graded_outline(&density(&px, w as usize, Reading::of(imaging, det.i_max())))
+            // The focal spot's penumbra at the model's nominal depth: object-to-detector over
+            // source-to-object distance.
+            let source_z = frame.pose.to_local(c.beamline.source_mm).z;
+            let model_z = frame.pose.to_local(nominal.position_mm).z;
+            let windows = EdgeWindows::for_imaging(
+                imaging,
+                det.pixel_pitch_mm[0].min(det.pixel_pitch_mm[1]),
+                model_z / (source_z - model_z),
+            );
+            let expected_area_px = implant_in(setup, exposure, &frame, c.beamline.source_mm)
+                .and_then(|i| i.expected_area_px);
+            graded_outline(
+                &density(&px, w as usize, Reading::of(imaging, det.i_max())),
+                windows,
+                expected_area_px,
+            )
         } else {
             outline(&px, w as usize, det.i_max())
         };
         if let Some(o) = found {
-            outlines.push((
-                c.beamline.frame(det.pixels, det.pixel_pitch_mm),
-                c.beamline.source_mm,
-                o,
-            ));
+            outlines.push((frame, c.beamline.source_mm, o));
         }
     }
     let views: Vec<SilhouetteView> = outlines

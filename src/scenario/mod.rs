@@ -26,6 +26,16 @@ pub struct Level {
 }
 
 impl Scenario {
+    /// Whether the material `name` (a user material of `[materials]` or a shipped one) counts as
+    /// metal: density at least [`crate::material::METAL_DENSITY_G_CM3`]. Unknown names do not.
+    pub fn is_metal(&self, name: &str) -> bool {
+        let density = match self.materials.get(name) {
+            Some(user) => user.density_g_cm3,
+            None => crate::material::by_name(name).map_or(0.0, |m| m.density_g_cm3),
+        };
+        density >= crate::material::METAL_DENSITY_G_CM3
+    }
+
     /// The protocol's levels in order: `noise_levels` in binary mode, `exposure_levels`
     /// (default `[1.0]`) in attenuation mode.
     pub fn levels(&self) -> Vec<Level> {

@@ -1,0 +1,351 @@
+//! The implant's shadow in an attenuation-mode image, found from the image's own levels, with or
+//! without clipping.
+//!
+//! On a sharp image a metal component clips: its shadow is a flat plateau at the top of the
+//! range. With scatter it does not. The scattered photons reach the detector behind the metal, so
+//! its shadow reads only the scatter veil (`ln(S_open/S)` of about 3–4.5 in the project's knee
+//! exams). That veil is lowest in the middle of the shadow and highest at its rim, so the shadow is
+//! a dome, not a plateau, and its rim may lie only 0.6–1 above the tissue around it. A level
+//! half-way between the image's median and its densest pixels then merges the shadow with the
+//! thigh, and one half-way between the surroundings and the dome's top lies inside the shadow.
+//!
+//! The segmentation therefore looks for the level at which the shadow's boundary is steepest,
+//! as an operator moving a threshold would see the mask snap to the implant's edge:
+//!
+//! 1. **Core**: the largest 8-connected component of pixels at or above the image's
+//!    [`CORE_QUANTILE`] (the densest part of the implant; it must cover at least 0.5 % of the
+//!    image).
+//! 2. **Levels**: [`LEVELS`] levels evenly spaced from the image's median up to the core's
+//!    level. At each, the region is the 8-connected set of pixels at or above it that holds the
+//!    core (grown from the core), as long as it covers at most [`MAX_AREA_FRACTION`] of the image.
+//! 3. **Steepness**: the mean Sobel gradient magnitude of the attenuation over the region's
+//!    boundary pixels. A level inside the dome gives a gentle boundary, one below the implant's
+//!    rim a boundary over bone and soft tissue; the implant's edge, a jump of about one unit of
+//!    attenuation within two pixels, is the steepest. The shadow is the region at the steepest
+//!    level.
+//!
+//! In a lateral knee view bone can read as dense as the metal's scatter veil, so that no level
+//! separates them. When the expected area of the implant's shadow is known (from the model mesh
+//! at its nominal pose), only levels whose region covers [`AREA_RANGE`] times that area are
+//! considered, and if none does, the one whose area comes closest to it.
+//!
+//! On a clipped implant every level between its surroundings and the top crosses the same
+//! jump, and the shadow is the clipped component with the partial pixels above that level. The
+//! level only seeds the outline: where the edge lies is measured on the local profiles
+//! ([`super::edge`]).
+
+use super::density::Density;
+use super::detect::{Blob, components};
+
+/// The core is the largest component at or above this quantile of the image.
+pub const CORE_QUANTILE: f64 = 0.995;
+/// Levels tried between the image's median and the core's level.
+pub const LEVELS: usize = 32;
+/// A region larger than this fraction of the image is not an implant's shadow.
+pub const MAX_AREA_FRACTION: f64 = 0.25;
+/// With an expected area, a level's region must cover between these multiples of it.
+pub const AREA_RANGE: [f64; 2] = [0.6, 1.6];
+
+/// The implant's shadow in one image.
+#[derive(Debug, Clone)]
+pub struct Shadow {
+    /// The shadow mask, row-major, like the image.
+    pub mask: Vec<bool>,
+    /// The shadow's component (area, centroid, bounding box).
+    pub blob: Blob,
+    /// The attenuation level that separates the shadow from its surroundings.
+    pub level: f64,
+}
+
+/// The densest large component of `img` at the level of its steepest boundary (module docs),
+/// among the levels whose region fits `expected_area_px` if given; `None` when the image has no
+/// pixel above its median.
+pub fn dense_shadow(img: &Density, expected_area_px: Option<f64>) -> Option<Shadow> {
+    let (w, h) = (img.width, img.height);
+    if w < 3 || h < 3 || img.values.len() != w * h {
+        return None;
+    }
+    let mut sorted = img.values.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let core_level = sorted[((sorted.len() as f64 * CORE_QUANTILE) as usize).min(sorted.len() - 1)];
+    if !(core_level > median) {
+        return None;
+    }
+    let core = core_pixels(img, core_level)?;
+    let gradient = sobel_magnitude(img);
+    let max_area = ((w * h) as f64 * MAX_AREA_FRACTION) as usize;
+    let mut region = Region::new(w * h);
+    // (fits the expected area, steepness, level) of the best level so far, and (area misfit,
+    // level) of the level closest to the expected area.
+    let mut best: Option<(f64, f64)> = None;
+    let mut closest: Option<(f64, f64)> = None;
+    for k in (1..=LEVELS).rev() {
+        let level = median + (core_level - median) * k as f64 / LEVELS as f64;
+        if !region.grow(img, &core, level, max_area) {
+            break;
+        }
+        if let Some(expected) = expected_area_px {
+            let ratio = region.pixels.len() as f64 / expected.max(1.0);
+            let misfit = ratio.max(1.0 / ratio.max(f64::MIN_POSITIVE));
+            if closest.is_none_or(|(m, _)| misfit < m) {
+                closest = Some((misfit, level));
+            }
+            if !(AREA_RANGE[0]..=AREA_RANGE[1]).contains(&ratio) {
+                continue;
+            }
+        }
+        let steepness = region.boundary_mean(img, &gradient);
+        if best.is_none_or(|(b, _)| steepness > b) {
+            best = Some((steepness, level));
+        }
+    }
+    let (_, level) = best.or(closest)?;
+    region.grow(img, &core, level, usize::MAX);
+    let mask = region.mask();
+    let blob = blob_of(&mask, w);
+    Some(Shadow { mask, blob, level })
+}
+
+/// The pixels of the largest 8-connected component at or above `level`.
+fn core_pixels(img: &Density, level: f64) -> Option<Vec<usize>> {
+    let dense: Vec<u16> = img.values.iter().map(|&v| u16::from(v >= level)).collect();
+    let (labels, blobs) = components(&dense, img.width, 1);
+    let (index, _) = blobs.iter().enumerate().max_by_key(|(_, b)| b.area)?;
+    let id = index as u32 + 1;
+    Some((0..labels.len()).filter(|&k| labels[k] == id).collect())
+}
+
+/// The 8-connected region at or above a level that holds the core, grown by a depth-first fill.
+struct Region {
+    /// `stamp[k] == round`: pixel k is in the current region.
+    stamp: Vec<u32>,
+    round: u32,
+    pixels: Vec<usize>,
+}
+
+impl Region {
+    fn new(n: usize) -> Region {
+        Region {
+            stamp: vec![0; n],
+            round: 0,
+            pixels: Vec::new(),
+        }
+    }
+
+    /// Fills the region at `level` from `core`; `false` (and a partial region) once it exceeds
+    /// `max_area` pixels.
+    fn grow(&mut self, img: &Density, core: &[usize], level: f64, max_area: usize) -> bool {
+        let (w, h) = (img.width as i64, img.height as i64);
+        self.round += 1;
+        self.pixels.clear();
+        let mut stack: Vec<usize> = Vec::new();
+        for &k in core {
+            if img.values[k] >= level && self.stamp[k] != self.round {
+                self.stamp[k] = self.round;
+                stack.push(k);
+            }
+        }
+        while let Some(k) = stack.pop() {
+            self.pixels.push(k);
+            if self.pixels.len() > max_area {
+                return false;
+            }
+            let (i, j) = ((k as i64) % w, (k as i64) / w);
+            for dj in -1..=1 {
+                for di in -1..=1 {
+                    let (x, y) = (i + di, j + dj);
+                    if x < 0 || y < 0 || x >= w || y >= h {
+                        continue;
+                    }
+                    let n = (y * w + x) as usize;
+                    if self.stamp[n] != self.round && img.values[n] >= level {
+                        self.stamp[n] = self.round;
+                        stack.push(n);
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// The mean of `gradient` over the region's boundary pixels: those with a 4-neighbour
+    /// outside it (or off the image).
+    fn boundary_mean(&self, img: &Density, gradient: &[f64]) -> f64 {
+        let (w, h) = (img.width, img.height);
+        let (mut sum, mut n) = (0.0, 0usize);
+        for &k in &self.pixels {
+            let (i, j) = (k % w, k / w);
+            let outside = |x: Option<usize>, y: Option<usize>| match (x, y) {
+                (Some(x), Some(y)) if x < w && y < h => self.stamp[y * w + x] != self.round,
+                _ => true,
+            };
+            if outside(i.checked_sub(1), Some(j))
+                || outside(Some(i + 1), Some(j))
+                || outside(Some(i), j.checked_sub(1))
+                || outside(Some(i), Some(j + 1))
+            {
+                sum += gradient[k];
+                n += 1;
+            }
+        }
+        if n == 0 { 0.0 } else { sum / n as f64 }
+    }
+
+    fn mask(&self) -> Vec<bool> {
+        self.stamp.iter().map(|&s| s == self.round).collect()
+    }
+}
+
+/// Area, centroid and bounding box of the pixels of `mask` (`width` wide).
+fn blob_of(mask: &[bool], width: usize) -> Blob {
+    let (mut area, mut sx, mut sy) = (0usize, 0.0, 0.0);
+    let mut bbox = [u32::MAX, u32::MAX, 0, 0];
+    for (k, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+        let (i, j) = ((k % width) as u32, (k / width) as u32);
+        area += 1;
+        sx += f64::from(i) + 0.5;
+        sy += f64::from(j) + 0.5;
+        bbox = [
+            bbox[0].min(i),
+            bbox[1].min(j),
+            bbox[2].max(i),
+            bbox[3].max(j),
+        ];
+    }
+    let n = area.max(1) as f64;
+    Blob {
+        centroid: glam::DVec2::new(sx / n, sy / n),
+        area,
+        bbox,
+    }
+}
+
+/// The Sobel gradient magnitude of the attenuation at every pixel, the image clamped at its
+/// borders.
+fn sobel_magnitude(img: &Density) -> Vec<f64> {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let at = |x: i64, y: i64| img.values[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
+    let mut out = Vec::with_capacity(img.values.len());
+    for j in 0..h {
+        for i in 0..w {
+            let gx = (at(i + 1, j - 1) + 2.0 * at(i + 1, j) + at(i + 1, j + 1))
+                - (at(i - 1, j - 1) + 2.0 * at(i - 1, j) + at(i - 1, j + 1));
+            let gy = (at(i - 1, j + 1) + 2.0 * at(i, j + 1) + at(i + 1, j + 1))
+                - (at(i - 1, j - 1) + 2.0 * at(i, j - 1) + at(i + 1, j - 1));
+            out.push((gx * gx + gy * gy).sqrt());
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec2;
+
+    /// A knee-like attenuation image, `w × h`: air (0) around a leg (2.0) that holds the
+    /// implant's shadow, a disc of radius `r` at `c` that reads as a scatter dome (`rim` at its
+    /// edge, `rim + 1` in the middle), and a bone bar of `bone` running from the disc to the
+    /// image's bottom; then blurred by σ = 0.8 px.
+    fn knee(rim: f64, bone: f64) -> (Density, Vec<bool>) {
+        let (w, h) = (200, 180);
+        let (c, r) = (DVec2::new(100.3, 70.6), 30.0);
+        let mut disc = vec![false; w * h];
+        let values: Vec<f64> = (0..w * h)
+            .map(|k| {
+                let p = DVec2::new((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
+                let d = (p - c).length();
+                if d <= r {
+                    disc[k] = true;
+                    rim + (1.0 - (d / r).powi(2))
+                } else if (p.x - 100.0).abs() < 14.0 && p.y > 70.0 {
+                    bone
+                } else if (p.x - 100.0).abs() < 70.0 {
+                    2.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let img = Density {
+            width: w,
+            height: h,
+            clipped: vec![false; w * h],
+            values,
+        };
+        (img.blurred(0.8), disc)
+    }
+
+    fn iou(a: &[bool], b: &[bool]) -> f64 {
+        let both = a.iter().zip(b).filter(|(x, y)| **x && **y).count();
+        let either = a.iter().zip(b).filter(|(x, y)| **x || **y).count();
+        both as f64 / either as f64
+    }
+
+    #[test]
+    fn a_scatter_lifted_implant_is_found_without_clipping() {
+        // The rim reads 3.0 against the leg's 2.0 and a bone of 2.5; nothing clips. A level
+        // half-way between the image's median (0) and its top (4.0) would take the whole leg.
+        let (img, disc) = knee(3.0, 2.5);
+        let s = dense_shadow(&img, None).unwrap();
+        assert!(iou(&s.mask, &disc) > 0.95, "IoU {}", iou(&s.mask, &disc));
+        assert!(s.level > 2.5 && s.level < 3.0, "{}", s.level);
+    }
+
+    #[test]
+    fn a_clipped_implant_is_its_clipped_shadow() {
+        // Sharp, clipped at 7 over a leg of 2 and a bone of 4: the level lies in the jump.
+        let (w, h) = (160, 150);
+        let c = DVec2::new(80.4, 60.7);
+        let values: Vec<f64> = (0..w * h)
+            .map(|k| {
+                let p = DVec2::new((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
+                if (p - c).length() <= 20.0 {
+                    7.0
+                } else if (p.x - 80.0).abs() < 12.0 && p.y > 60.0 {
+                    4.0
+                } else if (p.x - 80.0).abs() < 60.0 {
+                    2.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let clipped: Vec<bool> = values.iter().map(|&v| v >= 7.0).collect();
+        let img = Density {
+            width: w,
+            height: h,
+            clipped: clipped.clone(),
+            values,
+        };
+        let s = dense_shadow(&img, None).unwrap();
+        assert_eq!(s.mask, clipped);
+        assert!(s.level > 4.0 && s.level <= 7.0, "{}", s.level);
+    }
+
+    #[test]
+    fn the_expected_area_keeps_bone_as_dense_as_the_rim_out() {
+        // A lateral view: the bone reads 3.1, above the implant's rim (3.0), so every level that
+        // takes the whole disc takes the bone too; the steepest boundary is then the bone's and
+        // the disc's together. With the disc's expected area only the dense core that fits it
+        // is taken.
+        let (img, disc) = knee(3.0, 3.1);
+        let area = disc.iter().filter(|d| **d).count() as f64;
+        let merged = dense_shadow(&img, None).unwrap();
+        assert!(merged.blob.area as f64 > 1.7 * area, "{}", merged.blob.area);
+        let s = dense_shadow(&img, Some(area)).unwrap();
+        let ratio = s.blob.area as f64 / area;
+        assert!((AREA_RANGE[0]..=AREA_RANGE[1]).contains(&ratio), "{ratio}");
+        let outside = s
+            .mask
+            .iter()
+            .zip(&disc)
+            .filter(|(m, d)| **m && !**d)
+            .count();
+        assert!(
+            outside as f64 <= 0.02 * area,
+            "{outside} pixels outside the disc"
+        );
+    }
+}
