@@ -122,6 +122,7 @@ fn options() -> Options {
     Options {
         measured: MeasuredSource::PerRun("measured.json".into()),
         confidence: Confidence::default(),
+        mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
     }
 }
 
@@ -298,7 +299,7 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
         &out,
         &Options {
             measured: MeasuredSource::Csv(file),
-            confidence: Confidence::default(),
+            ..options()
         },
     )
     .unwrap();
