@@ -101,9 +101,13 @@
     labels.push({ p: ph.centre, text: ph.id, color: C.text });
     if (ph.envelope) { box(boxCorners(ph.envelope[0], ph.envelope[1]), C.envelope, 0.10, 0.7, [4, 3], "env"); }
   });
-  var warnings = [];
+  // Warnings at the same place stand side by side.
+  var warnings = [], atPlace = {};
   scene.warnings.forEach(function (w, i) {
-    if (w.at) { warnings.push({ p: w.at, n: i + 1, text: w.text }); }
+    if (!w.at) { return; }
+    var key = w.at.join(",");
+    atPlace[key] = (atPlace[key] || 0) + 1;
+    warnings.push({ p: w.at, n: i + 1, shift: 20 * (atPlace[key] - 1) });
   });
 
   // The view: centre and radius of everything; yaw about the scanner y axis, then pitch.
@@ -206,11 +210,11 @@
       var q = tf(w.p);
       ctx.fillStyle = C.warn;
       ctx.beginPath();
-      ctx.arc(q[0], q[1] - 16, 9, 0, 2 * Math.PI);
+      ctx.arc(q[0] + w.shift, q[1] - 16, 9, 0, 2 * Math.PI);
       ctx.fill();
       ctx.fillStyle = "#ffffff";
       ctx.textAlign = "center";
-      ctx.fillText(String(w.n), q[0], q[1] - 12);
+      ctx.fillText(String(w.n), q[0] + w.shift, q[1] - 12);
       ctx.textAlign = "start";
     });
     // Axes of the scanner frame, bottom left.

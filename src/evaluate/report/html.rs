@@ -24,11 +24,11 @@ table.facts code{word-break:break-all}\
 .plots{display:flex;flex-wrap:wrap;gap:0.5em}figure{margin:0}figcaption{font-size:0.85em;text-align:center;max-width:330px}\
 .legend{font-size:0.9em}code{font-size:0.9em}\
 *{-webkit-print-color-adjust:exact;print-color-adjust:exact}\
-@page{margin:12mm}\
+@page{size:A4;margin:12mm}\
 @media print{body{margin:0;max-width:none;padding:0;font-size:9pt}h2{margin-top:1.2em}\
 table{font-size:8pt}th,td{padding:0.15em 0.3em}thead{display:table-header-group}tr{break-inside:avoid}\
 h2,h3,h4{break-after:avoid}.plots{display:block}figure{display:inline-block;vertical-align:top;\
-break-inside:avoid;margin:0 0.3em 0.5em 0}figure svg{width:62mm;height:auto}figcaption{max-width:62mm}}";
+break-inside:avoid;margin:0 0.3em 0.5em 0}figure svg{width:56mm;height:auto}figcaption{max-width:56mm}table.iso td{white-space:normal}}";
 
 /// At most this many parameter columns stand in one printed table: a wider table is split into
 /// several, whole column groups at a time (each with the level and N columns), so that every
@@ -37,7 +37,7 @@ pub(crate) const MAX_COLUMNS: usize = 6;
 
 /// At most this many columns stand in one part of the ISO 5725-2 table besides the first two
 /// (table and parameter), which every part repeats.
-const MAX_ISO_COLUMNS: usize = 9;
+const MAX_ISO_COLUMNS: usize = 7;
 
 /// The report as one self-contained HTML document, suitable for a dossier as is: the facts that
 /// identify the data and the scoring, every table of the paper with significant cells shaded
@@ -380,7 +380,7 @@ reproducibility s_R, limits r = 2.8·s_r and R = 2.8·s_R, and a one-way ANOVA o
     while start < count {
         let end = (start + MAX_ISO_COLUMNS).min(count);
         let shown = |k: usize| k < 2 || (start..end).contains(&k);
-        s.push_str("<table><thead><tr>");
+        s.push_str("<table class=\"iso\"><thead><tr>");
         for (k, f) in iso::fields(&r.group_analyses[0]).iter().enumerate() {
             if shown(k) {
                 let _ = write!(s, "<th>{}</th>", esc(f.header));
