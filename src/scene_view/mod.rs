@@ -67,9 +67,9 @@ pub fn page(scene: &Scene) -> String {
         env!("CARGO_PKG_VERSION"),
         esc(&title)
     );
-    let _ = write!(
+    let _ = writeln!(
         s,
-        "<header><h1>{}</h1><p>Scanner frame, mm. Run <code>{}</code> drawn; shaded boxes: what each object sweeps over {} of {} runs (its random ranges). Drag to turn, wheel to zoom, double-click to reset.</p></header>\n",
+        "<header><h1>{}</h1><p>Scanner frame, mm. Run <code>{}</code> drawn; shaded boxes: what each object sweeps over {} of {} runs (its random ranges). Drag to turn, wheel to zoom, double-click to reset.</p></header>",
         esc(&title),
         esc(&scene.run),
         scene.envelope_runs,
