@@ -99,6 +99,26 @@ pub enum Command {
         #[command(flatten)]
         allow: AllowArgs,
     },
+    /// Write one self-contained HTML page that shows the scenario in 3D before it is run: sources,
+    /// detectors, calibration box, meshes and beads of the first run (drag to turn), each
+    /// object's random range as a shaded box, the beam cones, the first run's images as
+    /// thumbnails and the check's warnings placed on the objects. Not the run option
+    /// `--preview png`, which writes a PNG beside every image of a run.
+    Scene {
+        /// The scenario file to show.
+        scenario: PathBuf,
+        /// The page file. Default: out/<scenario name>-scene.html. An existing file is
+        /// replaced only when it is an earlier page of `rsasim scene`.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Leave out the thumbnails of the first run's images (making them simulates that run
+        /// in a temporary folder).
+        #[arg(long)]
+        no_images: bool,
+        /// What the scenario may read and use beyond the defaults.
+        #[command(flatten)]
+        allow: AllowArgs,
+    },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.
     Evaluate {
@@ -118,7 +138,9 @@ pub enum Command {
         /// One- or two-sided τ; the paper's τ = 1.73 at N = 20 is one-sided 95 %.
         #[arg(long, default_value = "one", value_parser = ["one", "two"])]
         sided: String,
-        /// Report formats, comma-separated: md, csv, tex, html.
+        /// Report formats, comma-separated: md, csv, tex, html, pdf. pdf prints the HTML report
+        /// with a headless browser: $RSASIM_BROWSER, else chromium, chromium-browser or
+        /// google-chrome on PATH (none found: exit 2 before anything is written).
         #[arg(
             long,
             default_value = "md,csv,tex,html",
@@ -126,6 +148,11 @@ pub enum Command {
             value_name = "LIST"
         )]
         format: Vec<String>,
+        /// The MTPM each model's MTPM cells are compared with, in mm: a cell whose upper end
+        /// T + P exceeds it is marked. Default 0.2 (continuous migration of a knee prosthesis
+        /// between one and two years that predicts loosening).
+        #[arg(long, default_value_t = rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM, value_name = "MM")]
+        mtpm_threshold_mm: f64,
         /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
         /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
         #[arg(long, value_name = "DIR")]

@@ -14,6 +14,7 @@ pub mod reconstruct;
 pub mod response;
 pub mod sampling;
 pub mod scenario;
+pub mod scene_view;
 pub mod simulate;
 pub mod spectrum;
 pub mod trace;

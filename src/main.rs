@@ -24,6 +24,12 @@ fn main() -> ExitCode {
         Some(Command::Expand { scenario, allow }) => {
             check(&scenario, &allow.into()).and_then(|checked| expand(&checked))
         }
+        Some(Command::Scene {
+            scenario,
+            out,
+            no_images,
+            allow,
+        }) => scene(&scenario, out, !no_images, &allow.into()),
         Some(Command::Schema { name, write_dir }) => schema(&name, write_dir.as_deref()),
         Some(Command::Reconstruct {
             out,
@@ -47,6 +53,7 @@ fn main() -> ExitCode {
             confidence,
             sided,
             format,
+            mtpm_threshold_mm,
             report,
             truth,
         }) => evaluate(
@@ -56,6 +63,7 @@ fn main() -> ExitCode {
             csv,
             confidence,
             &sided,
+            mtpm_threshold_mm,
             &format,
             report,
         ),
@@ -124,6 +132,42 @@ fn expand(checked: &simulate::Checked) -> Result<(), u8> {
         eprintln!("error: writing the runs to standard output failed: {e}");
         1
     })
+}
+
+/// `rsasim scene`: checks the scenario (errors: exit 2, nothing written), then writes its page.
+fn scene(
+    path: &std::path::Path,
+    out: Option<std::path::PathBuf>,
+    images: bool,
+    allow: &simulate::Allowances,
+) -> Result<(), u8> {
+    use rsasim::scene_view;
+    let checked = check(path, allow)?;
+    let out = out.unwrap_or_else(|| {
+        std::path::Path::new("out").join(format!("{}-scene.html", checked.loaded.scenario.name))
+    });
+    scene_view::check_page_target(&out).map_err(|d| report_errors(&[*d]))?;
+    let scene = scene_view::scene_of(checked, images).map_err(|e| {
+        eprintln!("error: making the thumbnails of the first run failed: {e}");
+        1
+    })?;
+    let page = scene_view::page(&scene);
+    let written = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .map_or(Ok(()), std::fs::create_dir_all)
+        .and_then(|()| rsasim::output::atomic::write_atomic(&out, page.as_bytes()));
+    written.map_err(|e| {
+        eprintln!("error: writing {} failed: {e}", out.display());
+        1
+    })?;
+    eprintln!(
+        "rsasim scene: {} warning(s), {} KiB -> {}",
+        scene.warnings.len(),
+        page.len().div_ceil(1024),
+        out.display()
+    );
+    Ok(())
 }
 
 fn report_errors(errors: &[Diagnostic]) -> u8 {
@@ -245,6 +289,7 @@ fn evaluate(
     csv: Option<std::path::PathBuf>,
     confidence: f64,
     sided: &str,
+    mtpm_threshold_mm: f64,
     formats: &[String],
     report_dir: Option<std::path::PathBuf>,
 ) -> Result<(), u8> {
@@ -252,6 +297,12 @@ fn evaluate(
     if !(confidence > 0.0 && confidence < 1.0) {
         eprintln!(
             "error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95"
+        );
+        return Err(2);
+    }
+    if !(mtpm_threshold_mm.is_finite() && mtpm_threshold_mm > 0.0) {
+        eprintln!(
+            "error: --mtpm-threshold-mm {mtpm_threshold_mm} is not a positive length in mm\n  = help: e.g. --mtpm-threshold-mm 0.2"
         );
         return Err(2);
     }
@@ -263,6 +314,15 @@ fn evaluate(
             eprintln!("error: --format: {e}");
             2
         })?;
+    // A PDF needs a browser: found before any work, so a missing one writes nothing.
+    let browser = if formats.contains(&report::Format::Pdf) {
+        Some(report::pdf::find_browser().map_err(|e| {
+            eprintln!("error: {}\n  = help: {}", e.message, e.help);
+            2
+        })?)
+    } else {
+        None
+    };
     let sided = if sided == "two" {
         stats::Sided::Two
     } else {
@@ -278,6 +338,7 @@ fn evaluate(
             level: confidence,
             sided,
         },
+        mtpm_threshold_mm,
     };
     let start = Instant::now();
     let result = evaluate::evaluate_with_truth(out, truth, &options)
@@ -290,13 +351,14 @@ fn evaluate(
     let dir = report_dir.unwrap_or_else(|| out.join(report::default_folder_name(&result)));
     let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[*d]))?;
     target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
-    let written = report::write_reports_into(&result, target, &formats).map_err(|e| {
-        eprintln!(
-            "error: writing the reports into {} failed: {e}",
-            dir.display()
-        );
-        1
-    })?;
+    let written =
+        report::write_reports_into(&result, target, &formats, browser.as_ref()).map_err(|e| {
+            eprintln!(
+                "error: writing the reports into {} failed: {e}",
+                dir.display()
+            );
+            1
+        })?;
     for e in &result.excluded {
         eprintln!("excluded: {}: {}", e.run, e.reason);
     }

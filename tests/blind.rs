@@ -39,6 +39,7 @@ fn options() -> Options {
             level: 0.95,
             sided: Sided::One,
         },
+        mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
     }
 }
 

@@ -122,6 +122,7 @@ fn options() -> Options {
     Options {
         measured: MeasuredSource::PerRun("measured.json".into()),
         confidence: Confidence::default(),
+        mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
     }
 }
 
@@ -298,7 +299,7 @@ fn a_csv_long_table_gives_the_same_report_as_json_files() {
         &out,
         &Options {
             measured: MeasuredSource::Csv(file),
-            confidence: Confidence::default(),
+            ..options()
         },
     )
     .unwrap();
@@ -476,9 +477,149 @@ fn the_command_writes_every_report_format() {
         "{md}"
     );
     assert!(md.contains("**Results file:** measured.json"), "{md}");
-    let o = rsasim(&["evaluate", out.to_str().unwrap(), "--format", "pdf"], &[]);
+    let o = rsasim(
+        &["evaluate", out.to_str().unwrap(), "--format", "docx"],
+        &[],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("valid formats"));
+    // PDF without a browser: exit 2 before anything is written, saying what to install.
+    let pdf_dir = tmp.path().join("pdf");
+    let (code, stderr) = evaluate_cli_env(
+        &out,
+        &[
+            "--format",
+            "html,pdf",
+            "--report",
+            pdf_dir.to_str().unwrap(),
+        ],
+        &[("RSASIM_BROWSER", "/no/such/chromium")],
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("RSASIM_BROWSER=/no/such/chromium")
+            && stderr.contains("apt-get install chromium"),
+        "{stderr}"
+    );
+    assert!(!pdf_dir.exists());
+}
+
+/// Words of the HTML tables (not the facts table, whose hash wraps anywhere): tags become
+/// spaces, entities are decoded.
+fn table_words(html: &str) -> Vec<String> {
+    let mut words = Vec::new();
+    for table in html.split("<table").skip(1) {
+        if table.starts_with(" class=\"facts\"") {
+            continue;
+        }
+        let body = &table[..table.find("</table>").unwrap()];
+        let body = &body[body.find('>').unwrap() + 1..];
+        let mut text = String::new();
+        let mut in_tag = false;
+        for ch in body.chars() {
+            match ch {
+                '<' => in_tag = true,
+                '>' => {
+                    in_tag = false;
+                    text.push(' ');
+                }
+                _ if !in_tag => text.push(ch),
+                _ => {}
+            }
+        }
+        let text = text
+            .replace("&gt;", ">")
+            .replace("&lt;", "<")
+            .replace("&quot;", "\"")
+            .replace("&#39;", "'")
+            .replace("&amp;", "&");
+        words.extend(text.split_whitespace().map(str::to_string));
+    }
+    words
+}
+
+/// Every word of the PDF with its page width: `(word, xMin, xMax, page width)` from
+/// `pdftotext -bbox`.
+fn pdf_words(pdftotext: &std::path::Path, pdf: &std::path::Path) -> Vec<(String, f64, f64, f64)> {
+    let o = std::process::Command::new(pdftotext)
+        .args(["-bbox", pdf.to_str().unwrap(), "-"])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let text = String::from_utf8(o.stdout).unwrap();
+    let attr = |tag: &str, name: &str| -> f64 {
+        let at = tag.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+        tag[at..at + tag[at..].find('"').unwrap()].parse().unwrap()
+    };
+    let mut width = 0.0;
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("<page ") {
+            width = attr(line, "width");
+        } else if let Some(rest) = line.strip_prefix("<word ") {
+            let close = rest.find('>').unwrap();
+            let word = rest[close + 1..rest.rfind("</word>").unwrap()]
+                .replace("&gt;", ">")
+                .replace("&lt;", "<")
+                .replace("&quot;", "\"")
+                .replace("&amp;", "&");
+            out.push((word, attr(rest, "xMin"), attr(rest, "xMax"), width));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_report_prints_to_pdf_with_every_column_on_the_page() {
+    let test = "the_report_prints_to_pdf_with_every_column_on_the_page";
+    let Some(browser) = common::browser::chromium_or_skip(test) else {
+        return;
+    };
+    let Some(pdftotext) = common::browser::tool_or_skip(test, &["pdftotext"], "poppler-utils")
+    else {
+        return;
+    };
+    let (tmp, out) = simulated();
+    write_all(&out, "measured.json", &|m| m);
+    let report = tmp.path().join("rep");
+    let (code, stderr) = evaluate_cli_env(
+        &out,
+        &["--format", "html,pdf", "--report", report.to_str().unwrap()],
+        &[("RSASIM_BROWSER", browser.to_str().unwrap())],
+    );
+    assert_eq!(code, Some(0), "{stderr}");
+    let pdf = report.join("report.pdf");
+    assert!(std::fs::read(&pdf).unwrap().starts_with(b"%PDF-"));
+    // Every word lies on its page (a column cut off at the right edge would not), and every
+    // word of every table (headings, cells: all columns) is in the PDF.
+    let words = pdf_words(&pdftotext, &pdf);
+    assert!(words.len() > 500, "{}", words.len());
+    for (w, x0, x1, width) in &words {
+        assert!(
+            *x0 >= 0.0 && *x1 <= *width,
+            "{w} at {x0}..{x1} of {width} pt"
+        );
+    }
+    let html = std::fs::read_to_string(report.join("report.html")).unwrap();
+    let printed: std::collections::BTreeSet<&str> = words.iter().map(|w| w.0.as_str()).collect();
+    let expected = table_words(&html);
+    assert!(expected.len() > 500, "{}", expected.len());
+    for heading in ["max", "Mandel", "k", "Grubbs", "verdict", "(within)"] {
+        assert!(expected.iter().any(|w| w == heading), "{heading}");
+    }
+    let missing: Vec<&String> = expected
+        .iter()
+        .filter(|w| !printed.contains(w.as_str()))
+        .collect();
+    assert!(missing.is_empty(), "not in the PDF: {missing:?}");
+    // The page loads in the browser without a console message (one more launch).
+    let console = common::browser::run_headless(
+        &browser,
+        &report.join("report.html"),
+        &["--dump-dom".to_string()],
+    );
+    assert!(console.is_empty(), "{console:?}");
 }
 
 #[test]
@@ -508,9 +649,18 @@ fn write_all(out: &std::path::Path, name: &str, edit: &dyn Fn(Measured) -> Measu
 
 /// Runs `rsasim evaluate OUT args…` and returns (exit code, stderr).
 fn evaluate_cli(out: &std::path::Path, args: &[&str]) -> (Option<i32>, String) {
+    evaluate_cli_env(out, args, &[])
+}
+
+/// [`evaluate_cli`] with extra environment.
+fn evaluate_cli_env(
+    out: &std::path::Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (Option<i32>, String) {
     let mut all = vec!["evaluate", out.to_str().unwrap()];
     all.extend(args);
-    let o = rsasim(&all, &[]);
+    let o = rsasim(&all, env);
     (
         o.status.code(),
         String::from_utf8_lossy(&o.stderr).into_owned(),

@@ -157,6 +157,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
             &Options {
                 measured: MeasuredSource::PerRun(name.into()),
                 confidence: Confidence::default(),
+                mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             },
         )
         .unwrap();
@@ -223,6 +224,7 @@ fn reconstruct_without_truth(out: &std::path::Path, args: &[&str], name: &str) -
         &Options {
             measured: MeasuredSource::PerRun(name.into()),
             confidence: Confidence::default(),
+            mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"))

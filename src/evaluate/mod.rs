@@ -51,7 +51,14 @@ pub struct Options {
     pub measured: MeasuredSource,
     /// τ's confidence level and sidedness.
     pub confidence: Confidence,
+    /// The MTPM cells are compared with, mm ([`DEFAULT_MTPM_THRESHOLD_MM`] by default).
+    pub mtpm_threshold_mm: f64,
 }
+
+/// The default MTPM threshold, mm: the continuous migration between one and two years above
+/// which a knee prosthesis is at risk of loosening (Ryd et al. 1995), the smallest migration a
+/// clinical RSA study of knees acts on.
+pub const DEFAULT_MTPM_THRESHOLD_MM: f64 = 0.2;
 
 /// Scores every run of the output folder `out`. Runs without results are listed as excluded;
 /// malformed results are errors naming file, line and field.
@@ -172,6 +179,7 @@ pub fn evaluate_with_truth(
         excluded,
         tables,
         mtpm,
+        mtpm_threshold_mm: options.mtpm_threshold_mm,
         group_analyses,
     })
 }

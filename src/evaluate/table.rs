@@ -104,6 +104,8 @@ pub struct Report {
     pub tables: Vec<Table>,
     /// MTPM (maximum total point motion) of each model over its beads, one table.
     pub mtpm: Option<Table>,
+    /// The MTPM a cell is compared with (its upper end T + P), mm.
+    pub mtpm_threshold_mm: f64,
     /// ISO 5725-2 analysis per parameter, noise levels as groups.
     pub group_analyses: Vec<GroupAnalysis>,
 }

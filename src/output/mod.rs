@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod commit;
 pub mod exr;
 pub mod folder_readme;
+pub mod html_text;
 pub mod manifest;
 pub mod measured;
 pub mod preview;

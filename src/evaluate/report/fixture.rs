@@ -108,6 +108,7 @@ pub fn report() -> Report {
         }],
         tables: vec![sources, detector],
         mtpm: None,
+        mtpm_threshold_mm: 0.2,
         group_analyses: vec![GroupAnalysis {
             table: "detector-det1".into(),
             parameter: "s".into(),

@@ -2,7 +2,9 @@
 
 use std::fmt::Write;
 
-use super::{columns, confidence_text, n_note, trueness_precision, usual_n};
+use super::{
+    MtpmVerdict, columns, confidence_text, mtpm_verdict, n_note, trueness_precision, usual_n,
+};
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
 
@@ -41,13 +43,19 @@ pub fn latex(report: &Report) -> String {
     s.push_str("%   \\usepackage[table]{xcolor}   % \\cellcolor for significant cells\n");
     s.push_str("%   \\usepackage[utf8]{inputenc}  % only for pdfLaTeX before 2018\n");
     s.push_str("% Shading: red = significant positive bias (T - P > 0), blue = significant negative bias (T + P < 0).\n\n");
-    for table in report.tables.iter().chain(&report.mtpm) {
-        table_float(&mut s, table);
+    for table in &report.tables {
+        table_float(&mut s, table, None);
+    }
+    if let Some(t) = &report.mtpm {
+        table_float(&mut s, t, Some(report.mtpm_threshold_mm));
     }
     s
 }
 
-fn table_float(s: &mut String, table: &Table) {
+/// One table as a `table*` float. With `threshold` (MTPM, a length never tested against zero),
+/// cells are shaded orange and marked when their upper end T + P exceeds it, and the caption
+/// states it.
+fn table_float(s: &mut String, table: &Table, threshold: Option<f64>) {
     let spec: Vec<String> = table
         .groups
         .iter()
@@ -78,7 +86,8 @@ fn table_float(s: &mut String, table: &Table) {
             let _ = write!(
                 s,
                 " & {}",
-                c.as_ref().map_or("--".to_string(), |c| cell(c, usual))
+                c.as_ref()
+                    .map_or("--".to_string(), |c| cell(c, usual, threshold))
             );
         }
         s.push_str(" \\\\\n");
@@ -90,24 +99,37 @@ fn table_float(s: &mut String, table: &Table) {
     } else {
         "."
     };
+    let threshold_sentence = threshold.map_or(String::new(), |t| {
+        format!(
+            " MTPM is a length: each cell's upper end $T + P$ is compared with the threshold {} mm (shaded orange above it).",
+            super::number::trimmed(t, 6)
+        )
+    });
     let _ = writeln!(
         s,
-        "\t\\caption{{\\label{{tab:{}}}{caption}{stop} {}}}",
+        "\t\\caption{{\\label{{tab:{}}}{caption}{stop} {}{threshold_sentence}}}",
         label(&table.id),
         n_caption(table)
     );
     s.push_str("\\end{table*}\n\n");
 }
 
-/// `$T \pm P$`, shaded when significant, with its N note.
-fn cell(c: &Cell, usual: Option<usize>) -> String {
-    let color = match c.significance {
-        Significance::Positive => "\\cellcolor{red!25}",
-        Significance::Negative => "\\cellcolor{blue!25}",
-        Significance::None => "",
+/// `$T \pm P$`, shaded when significant (or, with `threshold`, when above it), with its N note.
+fn cell(c: &Cell, usual: Option<usize>, threshold: Option<f64>) -> String {
+    let (color, mark) = match threshold {
+        Some(t) if mtpm_verdict(c, t) == MtpmVerdict::Above => (
+            "\\cellcolor{orange!25}",
+            format!("~($>{}$)", super::number::trimmed(t, 6)),
+        ),
+        Some(_) => ("", String::new()),
+        None => match c.significance {
+            Significance::Positive => ("\\cellcolor{red!25}", String::new()),
+            Significance::Negative => ("\\cellcolor{blue!25}", String::new()),
+            Significance::None => ("", String::new()),
+        },
     };
     let note = n_note(c, usual).map_or(String::new(), |n| format!("~{n}"));
-    format!("{color}${}${note}", trueness_precision(c, " \\pm "))
+    format!("{color}${}${mark}{note}", trueness_precision(c, " \\pm "))
 }
 
 /// The caption's sentence on N: "N = 20 per noise level." or the list per level.

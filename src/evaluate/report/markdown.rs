@@ -4,8 +4,8 @@ use std::fmt::Write;
 
 use super::iso;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, n_note, trueness_precision,
-    unicode_minus, usual_n,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, mtpm_legend, mtpm_mark, n_note,
+    trueness_precision, unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
@@ -55,12 +55,16 @@ pub fn markdown(report: &Report) -> String {
     s.push_str("### MTPM\n\n");
     match &report.mtpm {
         Some(t) => {
-            let _ = writeln!(
-                s,
-                "{}. Maximum total point motion over each model's beads.\n",
-                esc(&t.caption)
-            );
-            grid(&mut s, t, &|c| paper_cell(c));
+            let threshold = report.mtpm_threshold_mm;
+            let _ = writeln!(s, "{}. {}\n", esc(&t.caption), esc(&mtpm_legend(threshold)));
+            grid(&mut s, t, &|c| {
+                let text = unicode_minus(&trueness_precision(c, " ± "));
+                let text = match mtpm_mark(c, threshold) {
+                    m if m.is_empty() => text,
+                    m => format!("**{text}** {m}"),
+                };
+                (text, Significance::None)
+            });
         }
         None => s.push_str("No MTPM table (no model with beads was scored).\n\n"),
     }

@@ -1,5 +1,6 @@
-//! Writers of the evaluation [`Report`]: Markdown, CSV, LaTeX and HTML. Every writer is a pure
-//! function from the report to text; [`write_reports`] puts them on disk.
+//! Writers of the evaluation [`Report`]: Markdown, CSV, LaTeX and HTML (and PDF, the HTML
+//! printed by a headless browser). Every text writer is a pure function from the report to text;
+//! [`write_reports`] puts them on disk.
 //!
 //! Conventions shared by every format:
 //! - Numbers: two significant digits ([`format_number`]); noise levels as percentages
@@ -10,6 +11,8 @@
 //!   own "(N=k)".
 //! - Significant cells (T ± P excludes zero) are marked ▲ (positive bias, the paper's red) or ▼
 //!   (negative, the paper's blue), in bold or on a coloured background.
+//! - MTPM is a length (always ≥ 0), so its cells are not marked as bias: each is compared with
+//!   the report's stated threshold ([`mtpm_verdict`]).
 
 mod csv;
 #[cfg(test)]
@@ -19,6 +22,7 @@ mod iso;
 mod latex;
 mod markdown;
 mod number;
+pub mod pdf;
 mod svg;
 
 use std::path::{Path, PathBuf};
@@ -44,50 +48,58 @@ pub enum Format {
     Latex,
     /// One self-contained HTML file with tables and plots (`report.html`).
     Html,
+    /// The HTML report printed to PDF by a headless browser (`report.pdf`; see [`pdf`]).
+    Pdf,
 }
 
 impl Format {
-    /// Every format, in the order [`write_reports`] writes them when asked for all.
+    /// Every text format, in the order [`write_reports`] writes them when asked for all (PDF
+    /// needs a browser and is asked for by name).
     pub const ALL: [Format; 4] = [Format::Markdown, Format::Csv, Format::Latex, Format::Html];
 
-    /// File extension without the dot: `md`, `csv`, `tex`, `html`.
+    /// File extension without the dot: `md`, `csv`, `tex`, `html`, `pdf`.
     pub fn extension(self) -> &'static str {
         match self {
             Format::Markdown => "md",
             Format::Csv => "csv",
             Format::Latex => "tex",
             Format::Html => "html",
+            Format::Pdf => "pdf",
         }
     }
 }
 
 /// The error of parsing a [`Format`] name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown report format '{0}'; valid formats: md (or markdown), csv, tex (or latex), html")]
+#[error(
+    "unknown report format '{0}'; valid formats: md (or markdown), csv, tex (or latex), html, pdf"
+)]
 pub struct ParseFormatError(pub String);
 
 impl FromStr for Format {
     type Err = ParseFormatError;
 
-    /// Accepts `md`, `markdown`, `csv`, `tex`, `latex`, `html`, in any case.
+    /// Accepts `md`, `markdown`, `csv`, `tex`, `latex`, `html`, `pdf`, in any case.
     fn from_str(s: &str) -> Result<Format, ParseFormatError> {
         match s.trim().to_ascii_lowercase().as_str() {
             "md" | "markdown" => Ok(Format::Markdown),
             "csv" => Ok(Format::Csv),
             "tex" | "latex" => Ok(Format::Latex),
             "html" => Ok(Format::Html),
+            "pdf" => Ok(Format::Pdf),
             _ => Err(ParseFormatError(s.to_string())),
         }
     }
 }
 
-/// Renders `report` in `format` (for CSV: the cells table; see [`csv_iso5725`] for the rest).
+/// Renders `report` in `format` (for CSV: the cells table; see [`csv_iso5725`] for the rest;
+/// for PDF: the HTML document that [`pdf::print_pdf`] prints).
 pub fn render(report: &Report, format: Format) -> String {
     match format {
         Format::Markdown => markdown(report),
         Format::Csv => csv(report),
         Format::Latex => latex(report),
-        Format::Html => html(report),
+        Format::Html | Format::Pdf => html(report),
     }
 }
 
@@ -119,21 +131,29 @@ pub fn write_reports(
     report: &Report,
     dir: &Path,
     formats: &[Format],
+    browser: Option<&pdf::Browser>,
 ) -> Result<Vec<PathBuf>, WriteReportsError> {
     let target = claim_report_dir(dir).map_err(WriteReportsError::Refused)?;
-    Ok(write_reports_into(report, target, formats)?)
+    Ok(write_reports_into(report, target, formats, browser)?)
 }
 
 /// Writes `report.<ext>` for each of `formats` (duplicates are written once), and `iso5725.csv`
 /// beside `report.csv` when CSV is chosen, into a folder staged beside `target`, then swaps it in
 /// whole: the folder holds exactly these files (and the marker), never stale ones of an earlier
-/// run. Returns the final paths written, in order.
+/// run. PDF is printed by `browser` (an error without one; find it with [`pdf::find_browser`]
+/// before claiming the folder). Returns the final paths written, in order.
 pub fn write_reports_into(
     report: &Report,
     target: crate::output::commit::OutputTarget,
     formats: &[Format],
+    browser: Option<&pdf::Browser>,
 ) -> std::io::Result<Vec<PathBuf>> {
     use crate::output::atomic::write_staged;
+    if formats.contains(&Format::Pdf) && browser.is_none() {
+        return Err(std::io::Error::other(
+            "a PDF report needs a headless browser (none was given)",
+        ));
+    }
     let dir = target.shown().to_path_buf();
     let staged = target.stage()?;
     let mut written = Vec::new();
@@ -144,10 +164,11 @@ pub fn write_reports_into(
         }
         done.push(format);
         let name = format!("report.{}", format.extension());
-        write_staged(
-            &staged.path().join(&name),
-            render(report, format).as_bytes(),
-        )?;
+        let bytes = match (format, browser) {
+            (Format::Pdf, Some(browser)) => pdf::print_pdf(browser, &html(report))?,
+            _ => render(report, format).into_bytes(),
+        };
+        write_staged(&staged.path().join(&name), &bytes)?;
         written.push(dir.join(name));
         if format == Format::Csv {
             write_staged(
@@ -256,6 +277,51 @@ pub(crate) fn confidence_text(c: &Confidence) -> String {
     )
 }
 
+/// How an MTPM cell compares with the report's threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum MtpmVerdict {
+    /// The upper end T + P (T alone where P is undefined) is at or below the threshold.
+    Within,
+    /// The upper end exceeds the threshold.
+    Above,
+}
+
+/// MTPM is a length (≥ 0), so "T ± P excludes zero" says nothing: the cell's upper end T + P
+/// (T where P is undefined) is compared with `threshold_mm` instead.
+pub(crate) fn mtpm_verdict(cell: &Cell, threshold_mm: f64) -> MtpmVerdict {
+    let upper = if cell.precision.is_nan() {
+        cell.trueness
+    } else {
+        cell.trueness + cell.precision
+    };
+    if upper > threshold_mm {
+        MtpmVerdict::Above
+    } else {
+        MtpmVerdict::Within
+    }
+}
+
+/// The mark after an MTPM cell: "> 0.2" for one above the threshold, nothing otherwise.
+pub(crate) fn mtpm_mark(cell: &Cell, threshold_mm: f64) -> String {
+    match mtpm_verdict(cell, threshold_mm) {
+        MtpmVerdict::Above => format!("> {}", number::trimmed(threshold_mm, 6)),
+        MtpmVerdict::Within => String::new(),
+    }
+}
+
+/// The MTPM section's explanation, with the threshold.
+pub(crate) fn mtpm_legend(threshold_mm: f64) -> String {
+    format!(
+        "Maximum total point motion over each model's beads (or its bounding-box corners) between \
+its true and its measured pose: all of it is measurement error. MTPM is a length \
+(always ≥ 0), so a cell is not tested against zero: its upper end T + P is compared with the \
+threshold {} mm (`rsasim evaluate --mtpm-threshold-mm`), and a cell above it is marked \
+\"> {}\".",
+        number::trimmed(threshold_mm, 6),
+        number::trimmed(threshold_mm, 6)
+    )
+}
+
 /// The legend of significance marks, in words.
 pub(crate) const LEGEND: &str = "▲ significant positive bias (T − P > 0, the paper's red); \
 ▼ significant negative bias (T + P < 0, the paper's blue); unmarked: the interval T ± P contains zero.";
@@ -298,9 +364,12 @@ mod tests {
         ] {
             assert_eq!(name.parse::<Format>().unwrap(), f);
         }
-        let err = "pdf".parse::<Format>().unwrap_err().to_string();
+        assert_eq!("PDF".parse::<Format>().unwrap(), Format::Pdf);
+        assert_eq!(Format::Pdf.extension(), "pdf");
+        let err = "docx".parse::<Format>().unwrap_err().to_string();
         assert!(
-            err.contains("'pdf'")
+            err.contains("'docx'")
+                && err.contains("pdf")
                 && err.contains("md")
                 && err.contains("csv")
                 && err.contains("tex")
@@ -316,7 +385,8 @@ mod tests {
         let r = fixture::report();
         let root = tempfile::tempdir().unwrap();
         let dir = root.path().join("eval").join("reports");
-        let paths = write_reports(&r, &dir, &[Format::Html, Format::Csv, Format::Html]).unwrap();
+        let paths =
+            write_reports(&r, &dir, &[Format::Html, Format::Csv, Format::Html], None).unwrap();
         assert_eq!(
             paths,
             [
@@ -330,7 +400,7 @@ mod tests {
         // The three files and the marker that lets the next evaluate replace the folder.
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 4);
         // A second run asking for Markdown only leaves no stale file of the first.
-        let paths = write_reports(&r, &dir, &[Format::Markdown]).unwrap();
+        let paths = write_reports(&r, &dir, &[Format::Markdown], None).unwrap();
         assert_eq!(paths, [dir.join("report.md")]);
         assert!(!dir.join("report.html").exists() && !dir.join("iso5725.csv").exists());
         // A folder of the user's is never replaced.
@@ -338,13 +408,32 @@ mod tests {
         std::fs::create_dir(&mine).unwrap();
         std::fs::write(mine.join("chapter1.tex"), "mine").unwrap();
         assert!(matches!(
-            write_reports(&r, &mine, &Format::ALL),
+            write_reports(&r, &mine, &Format::ALL, None),
             Err(WriteReportsError::Refused(_))
         ));
         assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
         // For looking at the output by hand: RSASIM_REPORT_SAMPLE=/some/dir cargo test --lib report
         if let Ok(sample) = std::env::var("RSASIM_REPORT_SAMPLE") {
-            write_reports(&r, Path::new(&sample), &Format::ALL).unwrap();
+            write_reports(&r, Path::new(&sample), &Format::ALL, None).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_pdf_without_a_browser_writes_nothing() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("reports");
+        let err = write_reports(&fixture::report(), &dir, &[Format::Html, Format::Pdf], None)
+            .unwrap_err();
+        assert!(err.to_string().contains("headless browser"), "{err}");
+        // Nothing but the claim's lock file (hidden, beside the folder).
+        assert!(!dir.exists());
+        for e in std::fs::read_dir(root.path()).unwrap() {
+            assert!(
+                e.unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".rsasim-lock")
+            );
         }
     }
 

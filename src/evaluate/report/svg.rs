@@ -19,9 +19,6 @@ const RED: &str = "#b2182b";
 const BLUE: &str = "#2155a8";
 const BLACK: &str = "#222222";
 
-/// A plot of one parameter: points at (noise level, T) with error bars ±P, a dashed zero line,
-/// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
-/// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
 /// What the x axis of a plot shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Axis {
@@ -50,6 +47,14 @@ impl Axis {
     }
 }
 
+/// Colour of a threshold line (MTPM).
+const ORANGE: &str = "#c05a00";
+
+/// A plot of one parameter: points at (noise level, T) with error bars ±P, a dashed zero line,
+/// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
+/// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
+/// With `threshold` (a magnitude such as MTPM, never tested against zero) every point is a black
+/// circle and an orange dashed line marks the threshold, inside the y range.
 pub(crate) fn plot(
     title: &str,
     unit: &str,
@@ -57,6 +62,7 @@ pub(crate) fn plot(
     labels: &[String],
     axis: Axis,
     cells: &[Option<&Cell>],
+    threshold: Option<f64>,
 ) -> String {
     let points: Vec<(f64, &Cell)> = levels
         .iter()
@@ -64,7 +70,7 @@ pub(crate) fn plot(
         .filter_map(|(&x, c)| c.map(|c| (x, c)))
         .collect();
     let (x0, x1) = x_domain(levels);
-    let (ticks, y0, y1) = y_ticks(&points);
+    let (ticks, y0, y1) = y_ticks(&points, threshold);
     let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * (W - LEFT - RIGHT);
     let py = |y: f64| TOP + (y1 - y) / (y1 - y0) * (H - TOP - BOTTOM);
     let mut s = String::new();
@@ -130,8 +136,27 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         "<line x1=\"{LEFT:.2}\" y1=\"{zero:.2}\" x2=\"{:.2}\" y2=\"{zero:.2}\" stroke=\"#555555\" stroke-dasharray=\"4 3\"/>",
         W - RIGHT
     );
+    if let Some(t) = threshold {
+        let y = py(t);
+        let _ = write!(
+            s,
+            "<line x1=\"{LEFT:.2}\" y1=\"{y:.2}\" x2=\"{:.2}\" y2=\"{y:.2}\" stroke=\"{ORANGE}\" stroke-width=\"1.5\" stroke-dasharray=\"6 3\"/>",
+            W - RIGHT
+        );
+        let _ = write!(
+            s,
+            "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"end\" fill=\"{ORANGE}\">threshold {}</text>",
+            W - RIGHT - 3.0,
+            y - 3.0,
+            esc(&super::number::trimmed(t, 6))
+        );
+    }
     for (level, c) in &points {
-        point(&mut s, px(*level), c, &py);
+        let significance = match threshold {
+            Some(_) => Significance::None,
+            None => c.significance,
+        };
+        point(&mut s, px(*level), c, significance, &py);
     }
     let _ = write!(
         s,
@@ -150,9 +175,9 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
     s
 }
 
-/// One point with its error bar.
-fn point(s: &mut String, x: f64, c: &Cell, py: &dyn Fn(f64) -> f64) {
-    let color = match c.significance {
+/// One point with its error bar, drawn as `significance` says.
+fn point(s: &mut String, x: f64, c: &Cell, significance: Significance, py: &dyn Fn(f64) -> f64) {
+    let color = match significance {
         Significance::Positive => RED,
         Significance::Negative => BLUE,
         Significance::None => BLACK,
@@ -173,7 +198,7 @@ fn point(s: &mut String, x: f64, c: &Cell, py: &dyn Fn(f64) -> f64) {
         }
     }
     let y = py(c.trueness);
-    let shape = match c.significance {
+    let shape = match significance {
         Significance::Positive => format!(
             "<path d=\"M{x:.2} {:.2}L{:.2} {:.2}L{:.2} {:.2}Z\"",
             y - 5.0,
@@ -197,7 +222,7 @@ fn point(s: &mut String, x: f64, c: &Cell, py: &dyn Fn(f64) -> f64) {
         "{shape} fill=\"{color}\"><title>{}</title></",
         esc(&tooltip(c))
     );
-    s.push_str(if c.significance == Significance::None {
+    s.push_str(if significance == Significance::None {
         "circle>"
     } else {
         "path>"
@@ -224,11 +249,11 @@ fn x_domain(levels: &[f64]) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// "Nice" y ticks (steps of 1, 2 or 5 × 10^k) covering zero and every T ± P; returns the ticks
-/// with their labels and the axis range.
-fn y_ticks(points: &[(f64, &Cell)]) -> (Vec<(f64, String)>, f64, f64) {
+/// "Nice" y ticks (steps of 1, 2 or 5 × 10^k) covering zero, every T ± P and the threshold;
+/// returns the ticks with their labels and the axis range.
+fn y_ticks(points: &[(f64, &Cell)], threshold: Option<f64>) -> (Vec<(f64, String)>, f64, f64) {
     let mut lo: f64 = 0.0;
-    let mut hi: f64 = 0.0;
+    let mut hi: f64 = threshold.filter(|t| t.is_finite()).unwrap_or(0.0).max(0.0);
     for (_, c) in points {
         let p = if c.precision.is_finite() {
             c.precision
@@ -279,7 +304,7 @@ mod tests {
     #[test]
     fn ticks_are_nice_and_cover_the_bars() {
         let c = Cell::from_residuals(&[-0.5, -0.6, -0.4], &Confidence::default());
-        let (ticks, lo, hi) = y_ticks(&[(0.0, &c)]);
+        let (ticks, lo, hi) = y_ticks(&[(0.0, &c)], None);
         assert!(lo <= c.trueness - c.precision && hi >= 0.0);
         let labels: Vec<&str> = ticks.iter().map(|(_, l)| l.as_str()).collect();
         assert_eq!(labels, ["−0.8", "−0.6", "−0.4", "−0.2", "0", "0.2"]);
@@ -300,6 +325,7 @@ mod tests {
             &labels(),
             Axis::Noise,
             &[Some(&pos), None, Some(&one)],
+            None,
         );
         assert_eq!(
             svg,
@@ -309,11 +335,35 @@ mod tests {
                 &[0.0, 0.225, 0.45],
                 &labels(),
                 Axis::Noise,
-                &[Some(&pos), None, Some(&one)]
+                &[Some(&pos), None, Some(&one)],
+                None
             )
         );
         assert_eq!(svg.matches("<path").count(), 1);
         assert_eq!(svg.matches("<circle").count(), 1);
         assert!(svg.contains(">22.5%</text>") && svg.contains("T ± P (mm)"));
+        assert!(!svg.contains("threshold"));
+    }
+
+    #[test]
+    fn a_magnitude_is_plotted_against_its_threshold_not_as_bias() {
+        // An MTPM-like magnitude far from zero: T ± P excludes zero, yet no bias mark.
+        let mtpm = Cell::from_residuals(&[0.05, 0.06, 0.04], &Confidence::default());
+        assert_eq!(mtpm.significance, Significance::Positive);
+        let svg = plot(
+            "femur · MTPM",
+            "mm",
+            &[0.0],
+            &labels()[..1],
+            Axis::Noise,
+            &[Some(&mtpm)],
+            Some(0.2),
+        );
+        assert_eq!(svg.matches("<path").count(), 0);
+        assert_eq!(svg.matches("<circle").count(), 1);
+        assert!(svg.contains(">threshold 0.2</text>") && svg.contains(ORANGE));
+        // The y range reaches the threshold: a tick at 0.2 or above.
+        let (ticks, _, hi) = y_ticks(&[(0.0, &mtpm)], Some(0.2));
+        assert!(hi >= 0.2 && ticks.iter().any(|(v, _)| *v >= 0.2));
     }
 }
