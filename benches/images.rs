@@ -47,8 +47,13 @@ fn main() {
             noise_ms.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();
             // biplanar.toml's TIFF compression.
-            let bytes =
-                tiff::encode_tiff(w, h, &px, TiffCompression::Deflate, "bench", "rsasim").unwrap();
+            let facts = tiff::TiffFacts {
+                description: "bench",
+                software: "rsasim",
+                pixel_pitch_mm: [0.3, 0.3],
+                i_max: s.i_max,
+            };
+            let bytes = tiff::encode_tiff(w, h, &px, TiffCompression::Deflate, &facts).unwrap();
             tiff_ms.push(t.elapsed().as_secs_f64() * 1e3);
             std::hint::black_box(bytes);
             let t = Instant::now();

@@ -13,6 +13,8 @@
 //!   Linux; not checked elsewhere): the run would be killed or swap for hours.
 //! - a classic TIFF file is addressed by 32-bit offsets: an image whose TIFF can exceed 4 GiB is
 //!   refused (no override; choose `formats = ["exr"]` or fewer pixels).
+//! - a DICOM data element's length is a 32-bit number: an image whose pixel data exceed
+//!   [`DICOM_MAX_PIXEL_DATA_BYTES`] is refused as DICOM (no override).
 //!
 //! # Memory model (measured)
 //!
@@ -36,6 +38,12 @@ pub const MAX_PIXELS_PER_IMAGE: u64 = 100_000_000;
 pub const MAX_TOTAL_BYTES: u64 = 1_000_000_000_000;
 /// A classic TIFF file addresses its data with 32-bit offsets.
 pub const CLASSIC_TIFF_MAX_BYTES: u64 = u32::MAX as u64;
+/// Longest DICOM Pixel Data value: its length is a 32-bit number, and `FFFFFFFF` means
+/// "undefined length".
+pub const DICOM_MAX_PIXEL_DATA_BYTES: u64 = u32::MAX as u64 - 1;
+/// Upper bound of a DICOM file's bytes besides its pixel data (preamble, file meta group and
+/// the attributes of `output::dicom`: 1.8 kB measured), with margin.
+pub const DICOM_HEADER_BYTES: u64 = 16_384;
 /// Memory of one image in flight, per pixel, with margin over the 12.5 measured.
 pub const BYTES_PER_PIXEL_IN_FLIGHT: u64 = 14;
 /// Memory of the program itself with a tiny scenario (8 MB measured), with margin.
@@ -48,9 +56,10 @@ pub const OVERRIDE_FLAG: &str = "--allow-large";
 pub struct Cost {
     /// Runs of the protocol.
     pub runs: u64,
-    /// Images (exposure × detector × run), each written once per format.
+    /// Images (exposure × detector × run), each written once per format (DICOM: once per
+    /// intent).
     pub images: u64,
-    /// Upper bound of the bytes of every image of each format.
+    /// Upper bound of the bytes of every image of each format (DICOM: all intents).
     pub image_bytes: Vec<(ImageFormat, u64)>,
     /// Upper bound of everything written: images, truth files, phantoms, manifest.
     pub total_bytes: u64,
@@ -72,12 +81,18 @@ impl Cost {
             .formats
             .iter()
             .map(|&f| {
+                let files = s
+                    .output
+                    .image_files()
+                    .iter()
+                    .filter(|file| file.format() == f)
+                    .count() as u64;
                 let per_run: u64 = s
                     .detectors
                     .iter()
                     .map(|d| image_bytes_bound(f, s.output.tiff_compression, d.pixels))
                     .fold(0u64, u64::saturating_add)
-                    .saturating_mul(s.exposures.len() as u64);
+                    .saturating_mul(s.exposures.len() as u64 * files);
                 (f, per_run.saturating_mul(runs))
             })
             .collect();
@@ -97,7 +112,7 @@ impl Cost {
             + 250 * markers
             + 400 * per_run_images
             + 160 * image_markers;
-        let files_per_run = per_run_images * s.output.formats.len() as u64 + 1;
+        let files_per_run = per_run_images * s.output.image_files().len() as u64 + 1;
         let manifest_entry = 200;
         let mesh_bytes: u64 = models
             .iter()
@@ -252,6 +267,21 @@ impl Cost {
                     continue;
                 }
             }
+            if s.output.formats.contains(&ImageFormat::Dicom)
+                && pixels * 2 > DICOM_MAX_PIXEL_DATA_BYTES
+            {
+                out.push(
+                    loc.error(
+                        key.clone(),
+                        format!(
+                            "a {} × {} image of detector `{}` has {} of pixel data, more than the 4 GiB a DICOM data element can hold",
+                            d.pixels[0], d.pixels[1], crate::diagnostic::cut(&d.id), human_bytes(pixels * 2)
+                        ),
+                    )
+                    .with_help("leave \"dicom\" out of `[output] formats` or use fewer pixels"),
+                );
+                continue;
+            }
             if !allow_large && pixels > MAX_PIXELS_PER_IMAGE {
                 out.push(
                     loc.error(
@@ -343,6 +373,8 @@ pub fn image_bytes_bound(format: ImageFormat, tiff: TiffCompression, pixels: [u3
         // EXR blocks that do not shrink are stored raw; 4 bytes per sample, an offset and a
         // block header per scanline at most.
         ImageFormat::Exr => w * h * 4 + 16 * h + 4_096,
+        // Native (uncompressed) 16-bit pixels and the header, per intent.
+        ImageFormat::Dicom => w * h * 2 + DICOM_HEADER_BYTES,
     }
 }
 
@@ -402,5 +434,9 @@ mod tests {
         assert!(at(46_341) > CLASSIC_TIFF_MAX_BYTES);
         assert!(at(46_000) < CLASSIC_TIFF_MAX_BYTES);
         assert!(image_bytes_bound(ImageFormat::Exr, TiffCompression::None, [10, 10]) >= 400);
+        assert_eq!(
+            image_bytes_bound(ImageFormat::Dicom, TiffCompression::None, [10, 20]),
+            400 + DICOM_HEADER_BYTES
+        );
     }
 }

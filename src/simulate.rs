@@ -16,8 +16,10 @@ use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};
+use crate::output::dicom::describe::{ImageRef, NominalView, describe};
+use crate::output::dicom::encode_dx;
 use crate::output::exr::{ExrAttr, encode_exr_channels, encode_exr_with};
-use crate::output::tiff::encode_tiff;
+use crate::output::tiff::{TiffFacts, encode_tiff};
 use crate::output::{
     self, FileRef, ImageTruth, ImagesBinding, Layout, Manifest, ManifestFile, ProjectedMarker,
     Truth,
@@ -25,7 +27,7 @@ use crate::output::{
 use crate::phantom::{self, PhantomModel};
 use crate::sampling::Sampling;
 use crate::scenario::hex;
-use crate::scenario::{self, ImageFormat, LoadedScenario, Scenario};
+use crate::scenario::{self, ImageFile, ImageFormat, LoadedScenario, Scenario};
 use crate::trace::{self, MeshBvh, Object};
 use glam::DVec3;
 use sha2::{Digest, Sha256};
@@ -61,6 +63,10 @@ pub struct Plan {
     pub warnings: Vec<Diagnostic>,
     /// What the simulation will write and use.
     pub cost: Cost,
+    /// The nominal set-up's distances and directions per exposure and detector, for the DICOM
+    /// files (empty
+    /// when `formats` does not list `"dicom"`).
+    pub dicom_views: Vec<NominalView>,
 }
 
 impl Plan {
@@ -149,7 +155,14 @@ impl From<Checked> for Plan {
     /// Expands every run of a checked scenario.
     fn from(c: Checked) -> Plan {
         let runs = expand::expand(&c.loaded.scenario, &c.models);
+        let s = &c.loaded.scenario;
+        let dicom_views = if s.output.formats.contains(&ImageFormat::Dicom) {
+            output::dicom::describe::nominal_views(s, &c.models)
+        } else {
+            Vec::new()
+        };
         Plan {
+            dicom_views,
             loaded: c.loaded,
             models: c.models,
             setup: c.setup,
@@ -547,7 +560,7 @@ fn write_run(
     let truth_root = truth_root.unwrap_or(root);
     let truth_dir = truth_root.join("runs").join(&run.id);
     std::fs::create_dir_all(&truth_dir)?;
-    for exposure in &run.exposures {
+    for (exposure_index, exposure) in run.exposures.iter().enumerate() {
         let in_beam = exposure.phantom_indices(models);
         let mut objects = Vec::new();
         for &pi in &in_beam {
@@ -583,7 +596,7 @@ fn write_run(
             ),
             None => None,
         };
-        for det in &run.detectors {
+        for (detector_index, det) in run.detectors.iter().enumerate() {
             let frame = det.frame();
             let source = run.source_of(det);
             let key = NoiseKey::derive(
@@ -664,9 +677,20 @@ fn write_run(
 
             let stem = format!("{}-{}", exposure.id, det.id);
             let mut refs = Vec::new();
-            for format in &s.output.formats {
-                let name = format!("{stem}.{}", format.extension());
-                let bytes = encode_image(s, run, &exposure.id, det, &pixels, *format);
+            for file in s.output.image_files() {
+                let name = file.name(&stem);
+                let image = ImageRef {
+                    scenario: s,
+                    scenario_sha256: &plan.loaded.sha256,
+                    run,
+                    exposure_index,
+                    detector_index,
+                    intent: match file {
+                        ImageFile::Dicom(intent) => intent,
+                        _ => scenario::DicomIntent::Presentation,
+                    },
+                };
+                let bytes = encode_image(&image, &plan.dicom_views, &pixels, file);
                 let entry = manifest_entry(root, &dir.join(&name), &bytes)?;
                 refs.push(FileRef {
                     path: name,
@@ -774,23 +798,35 @@ fn path_length_exr(
             ("rsasim_scenario", ExrAttr::Text(s.name.clone())),
             ("rsasim_detector", ExrAttr::Text(det.id.clone())),
             ("rsasim_program", ExrAttr::Text(output::program())),
+            ("xDensity", ExrAttr::F64(exr_x_density(det.pixel_pitch_mm))),
+            (
+                "pixelAspectRatio",
+                ExrAttr::F64(det.pixel_pitch_mm[0] / det.pixel_pitch_mm[1]),
+            ),
         ],
         s.output.exr_compression,
     )
     .map_err(std::io::Error::other)
 }
 
+/// OpenEXR's standard `xDensity`: pixels per inch along a row, for a pitch `[x, y]` in mm.
+fn exr_x_density(pixel_pitch_mm: [f64; 2]) -> f64 {
+    25.4 / pixel_pitch_mm[0]
+}
+
+/// One image file's bytes: `image`'s pixels in the file's format (`views` for DICOM).
 fn encode_image(
-    s: &Scenario,
-    run: &Run,
-    exposure: &str,
-    det: &expand::DetectorState,
+    image: &ImageRef,
+    views: &[NominalView],
     pixels: &[u16],
-    format: ImageFormat,
+    file: ImageFile,
 ) -> Vec<u8> {
+    let (s, run) = (image.scenario, image.run);
+    let exposure = s.exposures[image.exposure_index].id.as_str();
+    let det = &run.detectors[image.detector_index];
     let [w, h] = det.pixels;
-    match format {
-        ImageFormat::Tiff => {
+    match file {
+        ImageFile::Tiff => {
             let mut description = format!(
                 "rsasim scenario={} run={} noise_level={} exposure={exposure} detector={} pixel_pitch_mm={}x{} bpp={}",
                 s.name,
@@ -809,12 +845,18 @@ fn encode_image(
                 h,
                 pixels,
                 s.output.tiff_compression,
-                &description,
-                &output::program(),
+                &TiffFacts {
+                    description: &description,
+                    software: &output::program(),
+                    pixel_pitch_mm: det.pixel_pitch_mm,
+                    i_max: det.i_max(),
+                },
             )
             .expect("in-memory TIFF encoding of a valid image")
         }
-        ImageFormat::Exr => {
+        ImageFile::Dicom(_) => encode_dx(&describe(image, views, pixels))
+            .expect("in-memory DICOM encoding of a checked image"),
+        ImageFile::Exr => {
             let values: Vec<f32> = pixels.iter().map(|&p| p as f32).collect();
             let attrs = [
                 ("rsasim_scenario", ExrAttr::Text(s.name.clone())),
@@ -832,6 +874,11 @@ fn encode_image(
                 ),
                 ("rsasim_bpp", ExrAttr::I32(det.bpp as i32)),
                 ("rsasim_program", ExrAttr::Text(output::program())),
+                ("xDensity", ExrAttr::F64(exr_x_density(det.pixel_pitch_mm))),
+                (
+                    "pixelAspectRatio",
+                    ExrAttr::F64(det.pixel_pitch_mm[0] / det.pixel_pitch_mm[1]),
+                ),
             ];
             let mut attrs = attrs.to_vec();
             if let Some(f) = run.exposure_factor {

@@ -259,6 +259,41 @@ const CASES: &[(&str, &str, &str, &str, &str)] = &[
         "unknown variant `round`",
         "profile = \"round\"",
     ),
+    (
+        "DICOM date not a calendar date",
+        "[[sources]]",
+        "[output]\nformats = [\"dicom\"]\ndicom.study_date = \"2023-02-30\"\n\n[[sources]]",
+        "`2023-02-30` is not a date of the form YYYY-MM-DD",
+        "dicom.study_date",
+    ),
+    (
+        "DICOM intent listed twice",
+        "[[sources]]",
+        "[output]\nformats = [\"dicom\"]\n\n[output.dicom]\nintents = [\"processing\", \"processing\"]\n\n[[sources]]",
+        "\"processing\" is listed twice",
+        "intents = [",
+    ),
+    (
+        "unknown DICOM intent",
+        "[[sources]]",
+        "[output]\nformats = [\"dicom\"]\ndicom.intents = [\"raw\"]\n\n[[sources]]",
+        "unknown variant `raw`",
+        "dicom.intents",
+    ),
+    (
+        "format listed twice",
+        "[[sources]]",
+        "[output]\nformats = [\"tiff\", \"tiff\"]\n\n[[sources]]",
+        "\"tiff\" is listed twice",
+        "formats = [",
+    ),
+    (
+        "DICOM with too few bits per pixel",
+        "bpp = 12\nposition_mm = [0.0, 0.0, -300.0]",
+        "bpp = 4\nposition_mm = [0.0, 0.0, -300.0]\n\n[output]\nformats = [\"tiff\", \"dicom\"]",
+        "a DICOM Digital X-Ray image stores 6 to 16",
+        "bpp = 4",
+    ),
 ];
 
 fn line_of(text: &str, needle: &str) -> usize {

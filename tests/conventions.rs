@@ -144,3 +144,40 @@ fn attenuation_metal_density_and_fluence_are_the_documented_ones() {
     let r = (x * x + y * y + 1200.0f64 * 1200.0).sqrt();
     assert!((f[0] - (1200.0 / r).powi(3)).abs() < 1e-12);
 }
+
+#[test]
+fn dicom_uids_are_the_documented_uuids_of_the_documented_labels() {
+    states("`rsasim/dicom/v1/study/{scenario_sha256}/{run}`");
+    states("`rsasim/dicom/v1/series/{scenario_sha256}/{run}/{exposure}/{intent}`");
+    states("`rsasim/dicom/v1/instance/{scenario_sha256}/{run}/{exposure}/{detector}/{intent}`");
+    let uid = |label: &str| {
+        let d = Sha256::digest(label.as_bytes());
+        let mut b = [0u8; 16];
+        b.copy_from_slice(&d[..16]);
+        b[6] = 0x80 | (b[6] & 0x0f);
+        b[8] = 0x80 | (b[8] & 0x3f);
+        format!("2.25.{}", u128::from_be_bytes(b))
+    };
+    use rsasim::output::dicom::uid;
+    assert_eq!(
+        uid::study_uid("ab12", "n1-r03"),
+        uid("rsasim/dicom/v1/study/ab12/n1-r03")
+    );
+    assert_eq!(
+        uid::series_uid("ab12", "n1-r03", "ap", "processing"),
+        uid("rsasim/dicom/v1/series/ab12/n1-r03/ap/processing")
+    );
+    assert_eq!(
+        uid::instance_uid("ab12", "n1-r03", "ap", "det_a", "presentation"),
+        uid("rsasim/dicom/v1/instance/ab12/n1-r03/ap/det_a/presentation")
+    );
+}
+
+#[test]
+fn image_pitch_tags_are_the_documented_ones() {
+    states("`10 / pitch_mm` pixels per");
+    states("`xDensity = 25.4 / pitch_x`");
+    states("`pitch_y \\ pitch_x` (row spacing first)");
+    let r = rsasim::output::tiff::pixels_per_cm(0.3).unwrap();
+    assert_eq!((r.n, r.d), (100, 3));
+}

@@ -55,6 +55,27 @@ pub fn runs<'a>(s: &'a Scenario, models: &'a [PhantomModel]) -> impl Iterator<It
         })
 }
 
+/// The nominal set-up as a run: every random range set to zero (no offsets drawn), so its
+/// poses are the scenario's own, in the box frame. Its id and levels are those of run 0 of
+/// level 0.
+pub fn nominal_run(s: &Scenario, models: &[PhantomModel]) -> Run {
+    let mut nominal = s.clone();
+    for src in &mut nominal.sources {
+        src.randomize = Default::default();
+    }
+    for d in &mut nominal.detectors {
+        d.randomize = PoseRange::default();
+    }
+    for p in &mut nominal.phantoms {
+        p.randomize = PoseRange::default();
+    }
+    let level = Level {
+        noise_level: 0.0,
+        exposure_factor: None,
+    };
+    expand_run(&nominal, models, 0, level, 0)
+}
+
 /// One run: the draws of its geometry stream applied to the nominal set-up.
 pub fn expand_run(
     s: &Scenario,

@@ -78,7 +78,9 @@ pub fn encode_exr(
 /// Each `(name, value)` of `attributes` becomes a header attribute. Names must be non-empty,
 /// Latin-1, unique, and not one of OpenEXR's standard attribute names
 /// (`exr::meta::header::standard_names::ALL`, e.g. `channels`, `owner`, `comments`), except
-/// `"software"`, which with an [`ExrAttr::Text`] value sets the standard Software attribute.
+/// these, which set the standard attribute of that name: `"software"` ([`ExrAttr::Text`]),
+/// `"xDensity"` (pixels per inch, [`ExrAttr::F64`], stored as a float) and `"pixelAspectRatio"`
+/// (a pixel's width over its height, [`ExrAttr::F64`], stored as a float; default 1).
 /// Errors: a pixel count that is not `width · height`, a zero or too large dimension, a
 /// rejected attribute, or an encoder failure.
 pub fn encode_exr_with(
@@ -122,7 +124,7 @@ pub fn encode_exr_channels(
             ));
         }
     }
-    let layer_attributes = layer_attributes(attributes)?;
+    let (layer_attributes, pixel_aspect) = layer_attributes(attributes)?;
     let (w, h) = (width as usize, height as usize);
     // The header exactly as the crate's image writer infers it; the samples are not needed here.
     let layer = Layer::new(
@@ -140,7 +142,14 @@ pub fn encode_exr_channels(
                 .collect(),
         )),
     );
-    let headers = Image::from_layer(layer).write().infer_meta_data();
+    let mut image_attributes = ImageAttributes::new(IntegerBounds::new(
+        layer.attributes.layer_position,
+        layer.size,
+    ));
+    image_attributes.pixel_aspect = pixel_aspect;
+    let headers = Image::new(image_attributes, layer)
+        .write()
+        .infer_meta_data();
     // A scan line holds each channel's samples in turn (sorted order).
     let interleaved: std::borrow::Cow<[f32]> = if sorted.len() == 1 {
         std::borrow::Cow::Borrowed(sorted[0].1)
@@ -261,8 +270,10 @@ fn latin1(what: &str, s: &str) -> Result<Text, String> {
     Text::new_or_none(s).ok_or_else(|| format!("EXR {what} must be Latin-1: {s:?}"))
 }
 
-fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<LayerAttributes, String> {
+/// The layer's attributes and the image's pixel aspect ratio (default 1).
+fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<(LayerAttributes, f32), String> {
     let mut la = LayerAttributes::default();
+    let mut pixel_aspect = 1.0f32;
     for (i, (name, value)) in attributes.iter().enumerate() {
         if name.is_empty() || name.contains('\0') {
             return Err(format!(
@@ -273,12 +284,30 @@ fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<LayerAttributes, S
             return Err(format!("EXR attribute {name:?} is given twice"));
         }
         let key = latin1("attribute name", name)?;
-        if *name == "software" {
-            match value {
-                ExrAttr::Text(s) => la.software_name = Some(latin1("attribute \"software\"", s)?),
-                _ => return Err("EXR attribute \"software\" must be text".to_string()),
+        match (*name, value) {
+            ("software", ExrAttr::Text(s)) => {
+                la.software_name = Some(latin1("attribute \"software\"", s)?);
+                continue;
             }
-            continue;
+            ("xDensity", &ExrAttr::F64(v)) => {
+                la.horizontal_density = Some(positive_f32(name, v)?);
+                continue;
+            }
+            ("pixelAspectRatio", &ExrAttr::F64(v)) => {
+                pixel_aspect = positive_f32(name, v)?;
+                continue;
+            }
+            ("software" | "xDensity" | "pixelAspectRatio", _) => {
+                return Err(format!(
+                    "EXR attribute {name:?} must be {}",
+                    if *name == "software" {
+                        "text"
+                    } else {
+                        "a number"
+                    }
+                ));
+            }
+            _ => {}
         }
         if standard_names::ALL.contains(&key.as_slice()) {
             return Err(format!(
@@ -292,7 +321,19 @@ fn layer_attributes(attributes: &[(&str, ExrAttr)]) -> Result<LayerAttributes, S
         };
         la.other.insert(key, value);
     }
-    Ok(la)
+    Ok((la, pixel_aspect))
+}
+
+/// `v` as a finite, positive `f32` for a standard float attribute.
+fn positive_f32(name: &str, v: f64) -> Result<f32, String> {
+    let f = v as f32;
+    if f.is_finite() && f > 0.0 {
+        Ok(f)
+    } else {
+        Err(format!(
+            "EXR attribute {name:?} must be a positive number, not {v}"
+        ))
+    }
 }
 
 /// Reorders the attributes of a single-part EXR header by name, in place. The header is the
@@ -602,7 +643,7 @@ mod tests {
         let ours = encode_exr_with(w, h, &px, &attrs(), ExrCompression::None).unwrap();
         let layer = Layer::new(
             (w as usize, h as usize),
-            layer_attributes(&attrs()).unwrap(),
+            layer_attributes(&attrs()).unwrap().0,
             Encoding {
                 compression: Compression::Uncompressed,
                 blocks: Blocks::ScanLines,
@@ -686,7 +727,35 @@ mod tests {
         assert!(ok(&[("x", ExrAttr::I32(1)), ("x", ExrAttr::I32(2))]).is_err());
         assert!(ok(&[("x", ExrAttr::Text("€".into()))]).is_err());
         assert!(ok(&[("software", ExrAttr::F64(1.0))]).is_err());
+        assert!(ok(&[("xDensity", ExrAttr::Text("1".into()))]).is_err());
+        assert!(ok(&[("xDensity", ExrAttr::F64(0.0))]).is_err());
+        assert!(ok(&[("pixelAspectRatio", ExrAttr::F64(f64::NAN))]).is_err());
         assert!(ok(&[("x", ExrAttr::Text("ok".into()))]).is_ok());
+    }
+
+    #[test]
+    fn density_and_pixel_aspect_are_the_standard_attributes() {
+        // A 0.3 × 0.25 mm pitch: 25.4 / 0.3 pixels per inch, pixels 1.2 times as wide as high.
+        let a = encode_exr(
+            2,
+            1,
+            &[0.0, 1.0],
+            &[
+                ("xDensity", ExrAttr::F64(25.4 / 0.3)),
+                ("pixelAspectRatio", ExrAttr::F64(0.3 / 0.25)),
+            ],
+        )
+        .unwrap();
+        let back = read_back(&a);
+        assert_eq!(back.attributes.pixel_aspect, 1.2f32);
+        assert_eq!(
+            back.layer_data.attributes.horizontal_density,
+            Some((25.4f64 / 0.3) as f32)
+        );
+        assert!(back.layer_data.attributes.other.is_empty());
+        let plain = read_back(&encode_exr(2, 1, &[0.0, 1.0], &[]).unwrap());
+        assert_eq!(plain.attributes.pixel_aspect, 1.0);
+        assert_eq!(plain.layer_data.attributes.horizontal_density, None);
     }
 
     #[test]

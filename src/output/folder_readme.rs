@@ -19,7 +19,16 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
     let blind = layout == Some(Layout::Images);
     let mut t = String::new();
     let s = scenario;
-    let formats: Vec<&str> = s.output.formats.iter().map(|f| f.extension()).collect();
+    let formats: Vec<&str> = s
+        .output
+        .formats
+        .iter()
+        .map(|f| match f {
+            crate::scenario::ImageFormat::Dicom => "DICOM (dcm)",
+            _ => f.extension(),
+        })
+        .collect();
+    let files = s.output.image_files();
     let _ = writeln!(t, "# rsasim output: {}\n", s.name);
     if !s.description.is_empty() && !blind {
         let _ = writeln!(t, "> {}\n", s.description.trim().replace('\n', "\n> "));
@@ -80,12 +89,11 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
     }
     for e in &s.exposures {
         for d in &s.detectors {
-            for f in &formats {
+            for f in &files {
                 let _ = writeln!(
                     t,
-                    "  {}-{}.{f}{}",
-                    e.id,
-                    d.id,
+                    "  {}{}",
+                    f.name(&format!("{}-{}", e.id, d.id)),
                     if e.phantoms.is_empty() {
                         String::new()
                     } else {
@@ -131,6 +139,16 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
           pixel (i, j) is at continuous pixel coordinates (i + 0.5, j + 0.5).\n";
     t += "- Intensities are detector counts, I_max = 2^bpp − 1: 16-bit TIFF and 32-bit float EXR \
           hold the same values.\n";
+    if s.output
+        .formats
+        .contains(&crate::scenario::ImageFormat::Dicom)
+    {
+        t += "- DICOM files are Digital X-Ray images of a **synthetic patient** (`SYNTHETIC^PHANTOM`: \
+              no real person) with the same counts; Imager Pixel Spacing is the detector pitch \
+              (row spacing first), and the source distances are the nominal set-up's, not a \
+              run's exact geometry. `<exposure>-<detector>.dcm` is for presentation, \
+              `…-processing.dcm` for processing.\n";
+    }
     let im = &s.imaging;
     if im.samples_per_side() > 1 {
         let n = im.samples_per_side();

@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod commit;
+pub mod dicom;
 pub mod exr;
 pub mod folder_readme;
 pub mod html_text;

@@ -2,12 +2,17 @@
 //!
 //! Output: one image, `Gray16` (BitsPerSample 16, SampleFormat unsigned), PhotometricInterpretation
 //! MinIsBlack, strips of about 1 MB (one row per strip for PackBits, as the `tiff` crate
-//! requires), with ImageDescription and Software tags. The bytes depend only on the inputs (no
+//! requires), with ImageDescription and Software tags, the pixel pitch as XResolution and
+//! YResolution in pixels per centimetre (ResolutionUnit 3, centimetre; [`pixels_per_cm`]), and
+//! I_max = 2^bpp − 1 as MaxSampleValue (baseline TIFF's tag for the largest value used, which
+//! tells readers how many of the 16 bits hold data). The bytes depend only on the inputs (no
 //! clock, no thread schedule); the byte order is the machine's (`II` on every little-endian
 //! platform).
 
-use ::tiff::encoder::{Compression, DeflateLevel, Predictor, TiffEncoder, colortype::Gray16};
-use ::tiff::tags::Tag;
+use ::tiff::encoder::{
+    Compression, DeflateLevel, Predictor, Rational, TiffEncoder, colortype::Gray16,
+};
+use ::tiff::tags::{ResolutionUnit, Tag};
 use std::io::Cursor;
 
 pub use crate::scenario::TiffCompression;
@@ -28,29 +33,102 @@ impl TiffCompression {
     }
 }
 
-/// Encodes a `width × height` row-major 16-bit grayscale image as a TIFF file in memory.
+/// What a TIFF file states besides its pixels.
+#[derive(Debug, Clone, Copy)]
+pub struct TiffFacts<'a> {
+    /// The ImageDescription tag (ASCII without NUL).
+    pub description: &'a str,
+    /// The Software tag (ASCII without NUL).
+    pub software: &'a str,
+    /// Pixel pitch `[x, y]`, mm (positive): XResolution and YResolution.
+    pub pixel_pitch_mm: [f64; 2],
+    /// The largest value the detector stores: MaxSampleValue.
+    pub i_max: u16,
+}
+
+/// Encodes a `width × height` row-major 16-bit grayscale image as a TIFF file in memory, with
+/// the tags of `facts`.
 ///
-/// `description` goes into the ImageDescription tag and `software` into the Software tag; both
-/// must be ASCII without NUL (TIFF ASCII fields). Errors: a pixel count that is not
-/// `width · height`, a zero dimension, a non-ASCII text, or an encoder failure.
+/// Errors: a pixel count that is not `width · height`, a zero dimension, a non-ASCII text, a
+/// pitch that is not positive and finite, or an encoder failure.
 pub fn encode_tiff(
     width: u32,
     height: u32,
     pixels: &[u16],
     compression: TiffCompression,
-    description: &str,
-    software: &str,
+    facts: &TiffFacts,
 ) -> Result<Vec<u8>, String> {
     let (compression, predictor) = compression.settings();
-    encode_with(
-        width,
-        height,
-        pixels,
-        compression,
-        predictor,
-        description,
-        software,
-    )
+    encode_with(width, height, pixels, compression, predictor, facts)
+}
+
+/// The TIFF resolution of a pitch: pixels per centimetre, `10 / pitch_mm`, as a rational. The
+/// pitch's shortest decimal form (what the scenario wrote, e.g. `0.3` gives `100/3`) is used
+/// exactly when the reduced fraction fits 32 bits; otherwise the closest fraction with 32-bit
+/// terms (continued fractions), e.g. `430 / 1440` mm gives `1440/43`. `None` for a pitch that is
+/// not positive and finite.
+pub fn pixels_per_cm(pitch_mm: f64) -> Option<Rational> {
+    if !(pitch_mm.is_finite() && pitch_mm > 0.0) {
+        return None;
+    }
+    let fits = |n: u128, d: u128| {
+        let g = gcd(n, d);
+        let (n, d) = (n / g, d / g);
+        (n <= u128::from(u32::MAX) && d <= u128::from(u32::MAX) && n > 0).then(|| Rational {
+            n: n as u32,
+            d: d as u32,
+        })
+    };
+    if let Some((digits, scale)) = decimal(pitch_mm) {
+        // 10 / (digits / scale) = 10·scale / digits
+        if let Some(r) = scale.checked_mul(10).and_then(|n| fits(n, digits)) {
+            return Some(r);
+        }
+    }
+    best_fraction(10.0 / pitch_mm)
+}
+
+/// `v > 0` as `digits / 10^k` from its shortest decimal form, if that fits 128 bits.
+fn decimal(v: f64) -> Option<(u128, u128)> {
+    let text = format!("{v}");
+    let (int, frac) = text.split_once('.').unwrap_or((&text, ""));
+    let digits: u128 = format!("{int}{frac}").parse().ok()?;
+    let scale = 10u128.checked_pow(u32::try_from(frac.len()).ok()?)?;
+    (digits > 0).then_some((digits, scale))
+}
+
+fn gcd(mut a: u128, mut b: u128) -> u128 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a.max(1)
+}
+
+/// The last continued-fraction convergent of `x > 0` whose terms fit 32 bits.
+fn best_fraction(x: f64) -> Option<Rational> {
+    let limit = f64::from(u32::MAX);
+    if !(x.is_finite() && x > 0.0 && x <= limit) {
+        return None;
+    }
+    let (mut h0, mut h1, mut k0, mut k1) = (0f64, 1f64, 1f64, 0f64);
+    let mut rest = x;
+    for _ in 0..64 {
+        let a = rest.floor();
+        let (h2, k2) = (a * h1 + h0, a * k1 + k0);
+        if h2 > limit || k2 > limit {
+            break;
+        }
+        (h0, h1, k0, k1) = (h1, h2, k1, k2);
+        let frac = rest - a;
+        if frac < 1e-12 {
+            break;
+        }
+        rest = 1.0 / frac;
+    }
+    (h1 >= 1.0 && k1 >= 1.0).then(|| Rational {
+        n: h1 as u32,
+        d: k1 as u32,
+    })
 }
 
 fn encode_with(
@@ -59,9 +137,16 @@ fn encode_with(
     pixels: &[u16],
     compression: Compression,
     predictor: Predictor,
-    description: &str,
-    software: &str,
+    facts: &TiffFacts,
 ) -> Result<Vec<u8>, String> {
+    let (description, software) = (facts.description, facts.software);
+    let resolution = facts.pixel_pitch_mm.map(pixels_per_cm);
+    let [Some(x_resolution), Some(y_resolution)] = resolution else {
+        return Err(format!(
+            "TIFF pixel pitch {:?} mm is not positive and finite",
+            facts.pixel_pitch_mm
+        ));
+    };
     if width == 0 || height == 0 {
         return Err(format!("TIFF image must not be empty ({width}×{height})"));
     }
@@ -92,6 +177,22 @@ fn encode_with(
             .encoder()
             .write_tag(Tag::Software, software)
             .map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::XResolution, x_resolution)
+            .map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::YResolution, y_resolution)
+            .map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::ResolutionUnit, ResolutionUnit::Centimeter)
+            .map_err(err)?;
+        image
+            .encoder()
+            .write_tag(Tag::MaxSampleValue, facts.i_max)
+            .map_err(err)?;
         image.write_data(pixels).map_err(err)?;
     }
     Ok(out.into_inner())
@@ -120,6 +221,15 @@ mod tests {
         )
     }
 
+    fn facts<'a>(description: &'a str, software: &'a str) -> TiffFacts<'a> {
+        TiffFacts {
+            description,
+            software,
+            pixel_pitch_mm: [0.3, 0.25],
+            i_max: 4095,
+        }
+    }
+
     fn decode(bytes: &[u8]) -> (u32, u32, Vec<u16>, String, String, u16, u16) {
         let mut d = Decoder::new(Cursor::new(bytes)).unwrap();
         let (w, h) = d.dimensions().unwrap();
@@ -138,8 +248,22 @@ mod tests {
         let (w, h) = (123u32, 77u32);
         let px = noisy(w as usize, h as usize, 0.3, 4095);
         for c in ALL {
-            let a = encode_tiff(w, h, &px, c, "rsasim test; sid_mm=1800", "rsasim 0.1").unwrap();
-            let b = encode_tiff(w, h, &px, c, "rsasim test; sid_mm=1800", "rsasim 0.1").unwrap();
+            let a = encode_tiff(
+                w,
+                h,
+                &px,
+                c,
+                &facts("rsasim test; sid_mm=1800", "rsasim 0.1"),
+            )
+            .unwrap();
+            let b = encode_tiff(
+                w,
+                h,
+                &px,
+                c,
+                &facts("rsasim test; sid_mm=1800", "rsasim 0.1"),
+            )
+            .unwrap();
             assert_eq!(a, b, "{c:?}: two encodes differ");
             let (dw, dh, back, desc, sw, photometric, bps) = decode(&a);
             assert_eq!((dw, dh), (w, h));
@@ -152,22 +276,67 @@ mod tests {
     }
 
     #[test]
+    fn resolution_and_max_sample_value_tags() {
+        let bytes =
+            encode_tiff(2, 2, &[0, 1, 2, 3], TiffCompression::None, &facts("", "")).unwrap();
+        let mut d = Decoder::new(Cursor::new(&bytes)).unwrap();
+        let rational = |d: &mut Decoder<_>, tag| match d.get_tag(tag).unwrap() {
+            ::tiff::decoder::ifd::Value::Rational(n, d) => (n, d),
+            other => panic!("{tag:?} is {other:?}"),
+        };
+        // 10 / 0.3 = 100/3 and 10 / 0.25 = 40 pixels per centimetre.
+        assert_eq!(rational(&mut d, Tag::XResolution), (100, 3));
+        assert_eq!(rational(&mut d, Tag::YResolution), (40, 1));
+        assert_eq!(d.get_tag_u32(Tag::ResolutionUnit).unwrap(), 3, "centimetre");
+        assert_eq!(d.get_tag_u32(Tag::MaxSampleValue).unwrap(), 4095);
+        let mut bad = facts("", "");
+        bad.pixel_pitch_mm = [0.0, 0.1];
+        assert!(encode_tiff(1, 1, &[0], TiffCompression::None, &bad).is_err());
+    }
+
+    #[test]
+    fn pixels_per_cm_is_exact_for_decimal_pitches() {
+        let r = |p| pixels_per_cm(p).map(|r| (r.n, r.d));
+        assert_eq!(r(0.3), Some((100, 3)));
+        assert_eq!(r(0.1), Some((100, 1)));
+        assert_eq!(r(0.298611), Some((10_000_000, 298_611)));
+        assert_eq!(r(0.148), Some((2500, 37)));
+        assert_eq!(r(2.0), Some((5, 1)));
+        // 430 / 1440 has no short decimal form: the continued fraction finds 1440/43.
+        assert_eq!(r(430.0 / 1440.0), Some((1440, 43)));
+        assert_eq!(r(0.0), None);
+        assert_eq!(r(-1.0), None);
+        assert_eq!(r(f64::NAN), None);
+        // Tiny or huge pitches: the nearest representable fraction, within 1e-9 relative.
+        for p in [1e-6, 12345.678901234, 0.123456789012345] {
+            let q = pixels_per_cm(p).unwrap();
+            let got = f64::from(q.n) / f64::from(q.d);
+            assert!(
+                (got - 10.0 / p).abs() <= 1e-9 * (10.0 / p),
+                "{p}: {}/{}",
+                q.n,
+                q.d
+            );
+        }
+    }
+
+    #[test]
     fn extreme_values_round_trip() {
         let px: Vec<u16> = (0..64 * 3)
             .map(|i| [0u16, 65535, 1, 65534][i % 4])
             .collect();
         for c in ALL {
-            let bytes = encode_tiff(64, 3, &px, c, "", "").unwrap();
+            let bytes = encode_tiff(64, 3, &px, c, &facts("", "")).unwrap();
             assert_eq!(decode(&bytes).2, px, "{c:?}");
         }
     }
 
     #[test]
     fn rejects_bad_input() {
-        assert!(encode_tiff(4, 4, &[0; 15], TiffCompression::None, "", "").is_err());
-        assert!(encode_tiff(0, 4, &[], TiffCompression::None, "", "").is_err());
-        assert!(encode_tiff(1, 1, &[0], TiffCompression::None, "µ", "").is_err());
-        assert!(encode_tiff(1, 1, &[0], TiffCompression::None, "", "a\0b").is_err());
+        assert!(encode_tiff(4, 4, &[0; 15], TiffCompression::None, &facts("", "")).is_err());
+        assert!(encode_tiff(0, 4, &[], TiffCompression::None, &facts("", "")).is_err());
+        assert!(encode_tiff(1, 1, &[0], TiffCompression::None, &facts("µ", "")).is_err());
+        assert!(encode_tiff(1, 1, &[0], TiffCompression::None, &facts("", "a\0b")).is_err());
     }
 
     #[test]
@@ -245,7 +414,7 @@ mod tests {
                 let mut bytes = Vec::new();
                 for _ in 0..5 {
                     let t = std::time::Instant::now();
-                    bytes = encode_with(w, w, px, *c, *p, "bench", "rsasim").unwrap();
+                    bytes = encode_with(w, w, px, *c, *p, &facts("bench", "rsasim")).unwrap();
                     times.push(t.elapsed().as_secs_f64());
                 }
                 times.sort_by(f64::total_cmp);

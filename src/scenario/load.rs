@@ -81,6 +81,7 @@ pub fn from_text(
     }
     let mut diagnostics = validate(&scenario, &locator);
     diagnostics.extend(super::imaging_check::check(&scenario, &locator));
+    diagnostics.extend(super::dicom::check(&scenario, &locator));
     let (errors, warnings): (Vec<_>, Vec<_>) =
         diagnostics.into_iter().partition(Diagnostic::is_error);
     if !errors.is_empty() {

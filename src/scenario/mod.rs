@@ -4,6 +4,7 @@
 //! [`Diagnostic`](crate::diagnostic::Diagnostic)s. Checks that need the mesh files or the
 //! geometry of every run happen in the later stages, which report through the same locator.
 
+mod dicom;
 mod imaging;
 mod imaging_check;
 mod lengths;

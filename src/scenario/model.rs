@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+pub use super::dicom::*;
 pub use super::imaging::*;
 
 /// A whole simulation: the radiological set-up, the phantoms, the protocol and the outputs.
@@ -97,6 +98,9 @@ pub enum ImageFormat {
     Tiff,
     /// OpenEXR (`.exr`), one 32-bit float channel `Y` with the same counts.
     Exr,
+    /// DICOM Digital X-Ray images (`.dcm`), 16-bit containers with the same counts; which ones
+    /// (for presentation, for processing) is set in `[output.dicom]`.
+    Dicom,
 }
 
 impl ImageFormat {
@@ -105,6 +109,38 @@ impl ImageFormat {
         match self {
             ImageFormat::Tiff => "tiff",
             ImageFormat::Exr => "exr",
+            ImageFormat::Dicom => "dcm",
+        }
+    }
+}
+
+/// One image file written per exposure and detector: a format, and for DICOM its intent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFile {
+    /// `<exposure>-<detector>.tiff`.
+    Tiff,
+    /// `<exposure>-<detector>.exr`.
+    Exr,
+    /// `<exposure>-<detector>.dcm` (for presentation) or `…-processing.dcm`.
+    Dicom(DicomIntent),
+}
+
+impl ImageFile {
+    /// The file's name for an image whose stem is `<exposure>-<detector>`.
+    pub fn name(self, stem: &str) -> String {
+        match self {
+            ImageFile::Tiff => format!("{stem}.tiff"),
+            ImageFile::Exr => format!("{stem}.exr"),
+            ImageFile::Dicom(intent) => format!("{stem}{}", intent.file_suffix()),
+        }
+    }
+
+    /// Its format.
+    pub fn format(self) -> ImageFormat {
+        match self {
+            ImageFile::Tiff => ImageFormat::Tiff,
+            ImageFile::Exr => ImageFormat::Exr,
+            ImageFile::Dicom(_) => ImageFormat::Dicom,
         }
     }
 }
@@ -146,7 +182,8 @@ pub enum ExrCompression {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputOptions {
-    /// Image formats to write for every exposure and detector. Default `["tiff", "exr"]`.
+    /// Image formats to write for every exposure and detector: `"tiff"`, `"exr"`, `"dicom"`.
+    /// Default `["tiff", "exr"]`.
     #[serde(default = "OutputOptions::default_formats")]
     pub formats: Vec<ImageFormat>,
     /// TIFF compression. Default `"deflate"`.
@@ -155,11 +192,33 @@ pub struct OutputOptions {
     /// EXR compression. Default `"zip"`.
     #[serde(default)]
     pub exr_compression: ExrCompression,
+    /// DICOM images: which intents, and their date. Default: for presentation, dated
+    /// 2000-01-01.
+    #[serde(default, skip_serializing_if = "DicomOptions::is_default")]
+    pub dicom: DicomOptions,
 }
 
 impl OutputOptions {
     fn default_formats() -> Vec<ImageFormat> {
         vec![ImageFormat::Tiff, ImageFormat::Exr]
+    }
+
+    /// Every image file written per exposure and detector, in the order of `formats` (DICOM:
+    /// in the order of `intents`).
+    pub fn image_files(&self) -> Vec<ImageFile> {
+        self.formats
+            .iter()
+            .flat_map(|f| match f {
+                ImageFormat::Tiff => vec![ImageFile::Tiff],
+                ImageFormat::Exr => vec![ImageFile::Exr],
+                ImageFormat::Dicom => self
+                    .dicom
+                    .intents
+                    .iter()
+                    .map(|&i| ImageFile::Dicom(i))
+                    .collect(),
+            })
+            .collect()
     }
 }
 
@@ -169,6 +228,7 @@ impl Default for OutputOptions {
             formats: Self::default_formats(),
             tiff_compression: TiffCompression::default(),
             exr_compression: ExrCompression::default(),
+            dicom: DicomOptions::default(),
         }
     }
 }

@@ -63,8 +63,17 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
         v.err(
             root.key("output").key("formats"),
             "no image format is selected",
-            "list at least one of \"tiff\", \"exr\"",
+            "list at least one of \"tiff\", \"exr\", \"dicom\"",
         );
+    }
+    for (i, f) in s.output.formats.iter().enumerate() {
+        if s.output.formats[..i].contains(f) {
+            v.err(
+                root.key("output").key("formats").index(i),
+                format!("\"{}\" is listed twice", f.extension()),
+                "list each format once",
+            );
+        }
     }
     v.unique_ids(
         &root.key("sources"),
@@ -190,23 +199,32 @@ impl Checker<'_> {
     }
 
     /// Two files of one folder whose names differ only in letter case collide on macOS and
-    /// Windows (and equal names collide everywhere): `<exposure>-<detector>.<ext>` in each run
-    /// folder, and the bead tables and mesh copies in `phantoms/`.
+    /// Windows (and equal names collide everywhere): the image files of each run folder
+    /// ([`OutputOptions::image_files`]), and the bead tables and mesh copies in `phantoms/`.
     fn file_names(&mut self, s: &Scenario) {
         let root = KeyPath::root();
         let mut images: Vec<(String, KeyPath)> = Vec::new();
+        // A format or intent listed twice is reported at its own key.
+        let mut files = Vec::new();
+        for f in s.output.image_files() {
+            if !files.contains(&f) {
+                files.push(f);
+            }
+        }
         for (ei, e) in s.exposures.iter().enumerate() {
             for d in &s.detectors {
-                images.push((
-                    format!("{}-{}", e.id, d.id),
-                    root.key("exposures").index(ei).key("id"),
-                ));
+                for f in &files {
+                    images.push((
+                        f.name(&format!("{}-{}", e.id, d.id)),
+                        root.key("exposures").index(ei).key("id"),
+                    ));
+                }
             }
         }
         self.collisions(
             images,
             "a run folder",
-            "images are named `<exposure>-<detector>.<ext>`",
+            "images are named `<exposure>-<detector>.<ext>` (DICOM for processing: `<exposure>-<detector>-processing.dcm`)",
         );
         let mut phantom_files: Vec<(String, KeyPath)> = Vec::new();
         for (pi, ph) in s.phantoms.iter().enumerate() {
