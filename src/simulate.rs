@@ -64,8 +64,7 @@ pub struct Plan {
     /// What the simulation will write and use.
     pub cost: Cost,
     /// The nominal set-up's distances and directions per exposure and detector, for the DICOM
-    /// files (empty
-    /// when `formats` does not list `"dicom"`).
+    /// files (empty when `formats` does not list `"dicom"`).
     pub dicom_views: Vec<NominalView>,
 }
 

@@ -260,6 +260,13 @@ const CASES: &[(&str, &str, &str, &str, &str)] = &[
         "profile = \"round\"",
     ),
     (
+        "unknown ray sampling",
+        "seed = 1",
+        "seed = 1\n[imaging]\nray_sampling = \"some\"",
+        "unknown variant `some`, expected `adaptive` or `full`",
+        "ray_sampling = \"some\"",
+    ),
+    (
         "DICOM date not a calendar date",
         "[[sources]]",
         "[output]\nformats = [\"dicom\"]\ndicom.study_date = \"2023-02-30\"\n\n[[sources]]",

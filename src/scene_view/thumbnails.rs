@@ -30,6 +30,8 @@ pub fn first_run_thumbnails(checked: Checked) -> std::io::Result<Vec<Vec<ImageVi
         runs: vec![first],
         warnings: Vec::new(),
         cost: checked.cost,
+        // Thumbnails come from the TIFFs alone.
+        dicom_views: Vec::new(),
     };
     let work = tempfile::Builder::new().prefix("rsasim-scene-").tempdir()?;
     let out = work.path().join("first-run");
