@@ -118,7 +118,7 @@ fn cells(line: &str) -> Vec<Cell<'_>> {
     let mut out = Vec::new();
     let mut column = 1;
     for part in line.split(',') {
-        let lead = part.len() - part.trim_start().len();
+        let lead = part.chars().count() - part.trim_start().chars().count();
         out.push(Cell {
             text: part.trim(),
             column: column + lead,
@@ -268,9 +268,17 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
                 "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
             ));
         }
-        for (b, group) in names.chunks(16).enumerate() {
+        let mut bodies = Vec::new();
+        for group in names.chunks(16) {
             let first = without_filter_suffix(group[0].text);
-            let body = &first[..first.len() - "_R11".len()];
+            let Some(body) = first.strip_suffix("_R11") else {
+                return Err(at(
+                    header_line,
+                    group[0].column,
+                    format!("column `{}` should be `<body>_R11`", cut(group[0].text)),
+                    "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
+                ));
+            };
             for (c, suffix) in group.iter().zip(BODY_COLUMNS) {
                 if without_filter_suffix(c.text) != format!("{body}_{suffix}") {
                     return Err(at(
@@ -296,6 +304,9 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
                     ),
                 ));
             }
+            bodies.push(body);
+        }
+        for (b, body) in bodies.into_iter().enumerate() {
             let m = &numbers[b * 16..b * 16 + 16];
             if m.iter().any(|x| x.is_nan()) {
                 continue; // not tracked in this frame
@@ -348,9 +359,17 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
         })
         .collect();
     let mut found: Vec<(usize, usize, DVec3)> = Vec::new(); // (phantom index, marker index, point)
+    let mut seen: Vec<(usize, usize)> = Vec::new();
     for (k, group) in names.chunks(3).enumerate() {
         let first = without_filter_suffix(group[0].text);
-        let name = &first[..first.len() - 2];
+        let Some(name) = first.strip_suffix("_X") else {
+            return Err(at(
+                header_line,
+                group[0].column,
+                format!("column `{}` should be `<marker>_X`", cut(group[0].text)),
+                "each marker has 3 columns: <name>_X,<name>_Y,<name>_Z",
+            ));
+        };
         for (c, axis) in group.iter().zip(["X", "Y", "Z"]) {
             if without_filter_suffix(c.text) != format!("{name}_{axis}") {
                 return Err(at(
@@ -403,6 +422,19 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
                 ));
             }
         };
+        if let Some(before) = seen.iter().position(|s| *s == (pi, mi)) {
+            return Err(at(
+                header_line,
+                group[0].column,
+                format!(
+                    "marker `{}` names the same bead as marker {} of the header",
+                    cut(name),
+                    before + 1
+                ),
+                "export each bead once",
+            ));
+        }
+        seen.push((pi, mi));
         let p = &numbers[k * 3..k * 3 + 3];
         if p.iter().any(|x| x.is_nan()) {
             continue;
@@ -490,6 +522,46 @@ mod tests {
             ("K2".into(), DVec3::new(0.0, 0.0, 4.0)),
         ]);
         assert_eq!(s, "K1_x,K1_y,K1_z,K2_x,K2_y,K2_z\n1,2.5,-3,0,0,4\n");
+    }
+
+    #[test]
+    fn a_second_body_without_its_r11_column_is_an_error_not_a_panic() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("x.csv");
+        let names = [
+            "R11", "R12", "R13", "01", "R21", "R22", "R23", "02", "R31", "R32", "R33", "03", "TX",
+            "TY", "TZ", "1",
+        ];
+        let mut header: Vec<String> = names.iter().map(|n| format!("a_{n}")).collect();
+        header.extend((0..16).map(|_| "é".to_string()));
+        let row = vec!["0"; 32].join(",");
+        std::fs::write(&file, format!("{}\n{row}\n", header.join(","))).unwrap();
+        let truth: Truth = serde_json::from_str(
+            r#"{"format": "rsasim-truth/1", "program": "rsasim test", "scenario": "t",
+                "id": "n0-r00", "noise_level_index": 0, "noise_level": 0.0, "run_index": 0,
+                "geometry_stream": "g",
+                "box_pose_in_scanner": {"position_mm": [0, 0, 0],
+                                        "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+                "sources": [], "detectors": [], "exposures": [], "images": [],
+                "phantoms": [{"id": "a", "kind": "beads", "position_mm": [0, 0, 0],
+                              "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                              "markers": [{"id": "K1", "position_mm": [0, 0, 0], "diameter_mm": 1}]}]}"#,
+        )
+        .unwrap();
+        let e = read_export(&file, &truth).unwrap_err();
+        assert_eq!(e[0].line_col.map(|l| l.0), Some(1));
+        assert!(
+            e[0].message.contains("should be `<body>_R11`"),
+            "{}",
+            e[0].message
+        );
+        std::fs::write(&file, "K1_X,K1_Y,K1_Z,é,b,c\n1,2,3,4,5,6\n").unwrap();
+        let e = read_export(&file, &truth).unwrap_err();
+        assert!(
+            e[0].message.contains("should be `<marker>_X`"),
+            "{}",
+            e[0].message
+        );
     }
 
     #[test]
