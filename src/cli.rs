@@ -108,7 +108,8 @@ pub enum Command {
         /// measured.json if present, else the one measured*.json name the run folders hold
         /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them. A
         /// name ending in .csv is read as XMALab's export of that run's trial: rigid-body
-        /// transformations (bodies named after phantoms) or 3D points (markers named after beads).
+        /// transformations (bodies named after phantoms), 3D points or 2D points (markers named
+        /// after beads; 2D points are triangulated with the exported true cameras).
         #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
         measured: Option<String>,
         /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.

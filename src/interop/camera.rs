@@ -102,6 +102,20 @@ impl PinholeCamera {
         p
     }
 
+    /// The direction (box frame, not normalised) of the ray from the camera centre through the
+    /// OpenCV pixel coordinates `xy`: Rᵀ·K⁻¹·(x, y, 1).
+    pub fn ray_direction(&self, xy: [f64; 2]) -> DVec3 {
+        let (k, r) = (&self.k, &self.r);
+        let yn = (xy[1] - k[1][2]) / k[1][1];
+        let xn = (xy[0] - k[0][2] - k[0][1] * yn) / k[0][0];
+        let n = [xn, yn, 1.0];
+        DVec3::new(
+            (0..3).map(|i| r[i][0] * n[i]).sum(),
+            (0..3).map(|i| r[i][1] * n[i]).sum(),
+            (0..3).map(|i| r[i][2] * n[i]).sum(),
+        )
+    }
+
     /// OpenCV pixel coordinates of a box-frame point, or `None` behind the camera.
     pub fn project(&self, point_mm: DVec3) -> Option<[f64; 2]> {
         homogeneous(&self.projection(), point_mm)
@@ -276,6 +290,10 @@ mod tests {
                 "{d:?} {want:?}"
             );
         }
+        // The ray through a point's pixel passes through the point.
+        let p = DVec3::new(30.0, -12.0, 55.0);
+        let d = cam.ray_direction(cam.project(p).unwrap()).normalize();
+        assert!((p - source).cross(d).length() < 1e-9);
         // Positive focal lengths and a proper rotation.
         assert!(cam.k[0][0] > 0.0 && cam.k[1][1] > 0.0);
         let r = rotation_from_rows(cam.r);

@@ -17,16 +17,21 @@
 //!   in the world, mm.
 //! - **3-D points** (one file): optional `Frame` column, then per marker `<name>_X,_Y,_Z`, mm,
 //!   world frame; `NaN` for an untracked marker.
+//! - **2-D points** (one file, XMALab's default pixels: 0-based, y down): optional `Frame` column,
+//!   then per marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major);
+//!   pixels of the exported (flipped) images. They are triangulated with the exported true
+//!   cameras.
 
 use std::path::Path;
 
 use glam::DVec3;
 
+use super::camera::PinholeCamera;
 use crate::diagnostic::{Diagnostic, cut};
 use crate::geometry::rotation_rows;
 use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
-use crate::reconstruct::rigid::fit_rigid;
+use crate::reconstruct::rigid::{fit_rigid, triangulate};
 
 /// The frame specification of a calibration object: header, then `x,y,z` per bead.
 pub fn frame_specification(beads_mm: &[DVec3]) -> String {
@@ -175,6 +180,9 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
     let rigid = names
         .first()
         .is_some_and(|c| without_filter_suffix(c.text).ends_with("_R11"));
+    let planar = names
+        .first()
+        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_cam1_X"));
     let points = names
         .first()
         .is_some_and(|c| without_filter_suffix(c.text).ends_with("_X"));
@@ -184,7 +192,7 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
             header_line,
             c,
             format!(
-                "the header `{}` is neither XMALab's rigid-body transformations (`<body>_R11,…`) nor its 3D points (`<marker>_X,…`)",
+                "the header `{}` is none of XMALab's rigid-body transformations (`<body>_R11,…`), 3D points (`<marker>_X,…`) or 2D points (`<marker>_cam1_X,…`)",
                 cut(header)
             ),
             "export from XMALab with \"header row\" checked, all bodies (or markers) in one file",
@@ -241,6 +249,8 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
         "XMALab ({} {})",
         if rigid {
             "rigid-body transformations"
+        } else if planar {
+            "2D points"
         } else {
             "3D points"
         },
@@ -339,89 +349,78 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
         }
         return Ok(measured);
     }
-    // 3-D points: every marker named after a bead.
-    if names.len() % 3 != 0 {
+    // Points: every marker named after a bead; 2-D points are triangulated with the exported
+    // (true) cameras.
+    let cameras = if planar {
+        truth
+            .run
+            .detectors
+            .iter()
+            .map(|d| {
+                PinholeCamera::of_beamline(truth.run.source_of(d), d)
+                    .map(|c| (truth.run.source_of(d), c))
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| vec![Diagnostic::file_error(file, e)])?
+    } else {
+        Vec::new()
+    };
+    let per_marker = if planar { 2 * cameras.len() } else { 3 };
+    let suffixes: Vec<String> = if planar {
+        (1..=cameras.len())
+            .flat_map(|j| [format!("_cam{j}_X"), format!("_cam{j}_Y")])
+            .collect()
+    } else {
+        vec!["_X".into(), "_Y".into(), "_Z".into()]
+    };
+    if per_marker == 0 || names.len() % per_marker != 0 {
         return Err(at(
             header_line,
             names.last().map_or(1, |c| c.column),
-            format!("{} point columns is not a multiple of 3", names.len()),
-            "each marker has 3 columns: <name>_X,<name>_Y,<name>_Z",
+            format!(
+                "{} point columns is not a multiple of {per_marker}",
+                names.len()
+            ),
+            &format!(
+                "each marker has {per_marker} columns: <name>{}",
+                suffixes.join(",<name>")
+            ),
         ));
     }
-    let beads: Vec<(&str, &str)> = truth
-        .run
-        .phantoms
-        .iter()
-        .flat_map(|p| {
-            p.markers
-                .iter()
-                .map(move |m| (p.id.as_str(), m.id.as_str()))
-        })
-        .collect();
     let mut found: Vec<(usize, usize, DVec3)> = Vec::new(); // (phantom index, marker index, point)
     let mut seen: Vec<(usize, usize)> = Vec::new();
-    for (k, group) in names.chunks(3).enumerate() {
+    for (k, group) in names.chunks(per_marker).enumerate() {
         let first = without_filter_suffix(group[0].text);
-        let Some(name) = first.strip_suffix("_X") else {
+        let Some(name) = first.strip_suffix(suffixes[0].as_str()) else {
             return Err(at(
                 header_line,
                 group[0].column,
-                format!("column `{}` should be `<marker>_X`", cut(group[0].text)),
-                "each marker has 3 columns: <name>_X,<name>_Y,<name>_Z",
+                format!(
+                    "column `{}` should be `<marker>{}`",
+                    cut(group[0].text),
+                    suffixes[0]
+                ),
+                &format!(
+                    "each marker has {per_marker} columns: <name>{}",
+                    suffixes.join(",<name>")
+                ),
             ));
         };
-        for (c, axis) in group.iter().zip(["X", "Y", "Z"]) {
-            if without_filter_suffix(c.text) != format!("{name}_{axis}") {
+        for (c, suffix) in group.iter().zip(&suffixes) {
+            if without_filter_suffix(c.text) != format!("{name}{suffix}") {
                 return Err(at(
                     header_line,
                     c.column,
-                    format!("column `{}` should be `{name}_{axis}`", cut(c.text)),
-                    "each marker has 3 columns: <name>_X,<name>_Y,<name>_Z",
+                    format!("column `{}` should be `{name}{suffix}`", cut(c.text)),
+                    &format!(
+                        "each marker has {per_marker} columns: <name>{}",
+                        suffixes.join(",<name>")
+                    ),
                 ));
             }
         }
-        let matches: Vec<(usize, usize)> = truth
-            .run
-            .phantoms
-            .iter()
-            .enumerate()
-            .flat_map(|(pi, p)| {
-                p.markers.iter().enumerate().filter_map(move |(mi, m)| {
-                    (m.id == name || format!("{}_{}", p.id, m.id) == name).then_some((pi, mi))
-                })
-            })
-            .collect();
-        let (pi, mi) = match matches.as_slice() {
-            [one] => *one,
-            [] => {
-                return Err(at(
-                    header_line,
-                    group[0].column,
-                    format!(
-                        "marker `{}` is not a bead of run {}",
-                        cut(name),
-                        truth.run.id
-                    ),
-                    &format!(
-                        "name each marker after its bead (e.g. {}), or <phantom>_<bead> when bead ids repeat",
-                        beads
-                            .iter()
-                            .take(3)
-                            .map(|(_, b)| *b)
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ),
-                ));
-            }
-            _ => {
-                return Err(at(
-                    header_line,
-                    group[0].column,
-                    format!("marker `{}` names a bead of several phantoms", cut(name)),
-                    "name it <phantom>_<bead>",
-                ));
-            }
-        };
+        let (pi, mi) = match_bead(truth, name)
+            .map_err(|(message, help)| at(header_line, group[0].column, message, &help))?;
         if let Some(before) = seen.iter().position(|s| *s == (pi, mi)) {
             return Err(at(
                 header_line,
@@ -435,12 +434,72 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
             ));
         }
         seen.push((pi, mi));
-        let p = &numbers[k * 3..k * 3 + 3];
-        if p.iter().any(|x| x.is_nan()) {
-            continue;
+        let v = &numbers[k * per_marker..(k + 1) * per_marker];
+        let point = if planar {
+            let rays: Vec<(DVec3, DVec3)> = cameras
+                .iter()
+                .zip(v.chunks(2))
+                .filter(|(_, xy)| !xy[0].is_nan() && !xy[1].is_nan())
+                .map(|((source, cam), xy)| (*source, cam.ray_direction([xy[0], xy[1]])))
+                .collect();
+            let (p, _) = triangulate(&rays);
+            p
+        } else {
+            DVec3::new(v[0], v[1], v[2])
+        };
+        if point.is_finite() {
+            found.push((pi, mi, point));
         }
-        found.push((pi, mi, DVec3::new(p[0], p[1], p[2])));
     }
+    measured.phantoms = fit_phantoms(truth, &found);
+    Ok(measured)
+}
+
+/// The (phantom, bead) indices a marker name designates: a bead id unique over the run's
+/// phantoms, or `<phantom>_<bead>`; otherwise a message and a help.
+fn match_bead(truth: &Truth, name: &str) -> Result<(usize, usize), (String, String)> {
+    let matches: Vec<(usize, usize)> = truth
+        .run
+        .phantoms
+        .iter()
+        .enumerate()
+        .flat_map(|(pi, p)| {
+            p.markers.iter().enumerate().filter_map(move |(mi, m)| {
+                (m.id == name || format!("{}_{}", p.id, m.id) == name).then_some((pi, mi))
+            })
+        })
+        .collect();
+    match matches.as_slice() {
+        [one] => Ok(*one),
+        [] => Err((
+            format!(
+                "marker `{}` is not a bead of run {}",
+                cut(name),
+                truth.run.id
+            ),
+            format!(
+                "name each marker after its bead (e.g. {}), or <phantom>_<bead> when bead ids repeat",
+                truth
+                    .run
+                    .phantoms
+                    .iter()
+                    .flat_map(|p| p.markers.iter().map(|m| m.id.as_str()))
+                    .take(3)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+        _ => Err((
+            format!("marker `{}` names a bead of several phantoms", cut(name)),
+            "name it <phantom>_<bead>".into(),
+        )),
+    }
+}
+
+/// The pose of every phantom with at least three measured beads: the least-squares rigid fit of
+/// its bead table (local frame) to the measured points, with the points and the fit's quality.
+fn fit_phantoms(truth: &Truth, found: &[(usize, usize, DVec3)]) -> Vec<MeasuredPose> {
+    let mut out = Vec::new();
     for (pi, phantom) in truth.run.phantoms.iter().enumerate() {
         let mine: Vec<&(usize, usize, DVec3)> = found.iter().filter(|f| f.0 == pi).collect();
         if mine.len() < 3 {
@@ -455,7 +514,7 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
         let Ok(fit) = fit_rigid(&local, &world) else {
             continue;
         };
-        measured.phantoms.push(MeasuredPose {
+        out.push(MeasuredPose {
             id: phantom.id.clone(),
             position_mm: fit.pose.position_mm.to_array(),
             rotation: Some(rotation_rows(&fit.pose.rotation)),
@@ -475,7 +534,7 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
             }),
         });
     }
-    Ok(measured)
+    out
 }
 
 #[cfg(test)]
