@@ -223,6 +223,23 @@ impl PinholeCamera {
     }
 }
 
+/// The camera of every detector of `run` with its source position, in the run's detector order;
+/// an error names a detector whose source is missing or lies behind it.
+pub fn run_cameras(run: &crate::expand::Run) -> Result<Vec<(DVec3, PinholeCamera)>, String> {
+    run.detectors
+        .iter()
+        .map(|d| {
+            let source = run
+                .sources
+                .iter()
+                .find(|s| s.id == d.source)
+                .ok_or_else(|| format!("detector `{}` names no source of the run", d.id))?
+                .position_mm;
+            PinholeCamera::of_beamline(source, d).map(|c| (source, c))
+        })
+        .collect()
+}
+
 /// Projects a point with a 3×4 matrix; `None` when its third coordinate is not positive.
 fn homogeneous(p: &[[f64; 4]; 3], x: DVec3) -> Option<[f64; 2]> {
     let v = |i: usize| p[i][0] * x.x + p[i][1] * x.y + p[i][2] * x.z + p[i][3];

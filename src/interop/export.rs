@@ -246,7 +246,19 @@ fn cameras(
     let mut out = Vec::new();
     for det in &run.detectors {
         let (source, det) = match measured {
-            None => (run.source_of(det), det.clone()),
+            None => {
+                let source = run
+                    .sources
+                    .iter()
+                    .find(|s| s.id == det.source)
+                    .ok_or_else(|| {
+                        Error::Input(vec![Diagnostic::file_error(
+                            &dir.join("truth.json"),
+                            format!("detector `{}` names no source of the run", det.id),
+                        )])
+                    })?;
+                (source.position_mm, det.clone())
+            }
             Some(m) => {
                 let file = dir.join(options.calibration_from.as_deref().unwrap_or_default());
                 let lacks = |what: &str| {

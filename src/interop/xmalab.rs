@@ -26,7 +26,6 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::camera::PinholeCamera;
 use crate::diagnostic::{Diagnostic, cut};
 use crate::geometry::rotation_rows;
 use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
@@ -352,16 +351,7 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
     // Points: every marker named after a bead; 2-D points are triangulated with the exported
     // (true) cameras.
     let cameras = if planar {
-        truth
-            .run
-            .detectors
-            .iter()
-            .map(|d| {
-                PinholeCamera::of_beamline(truth.run.source_of(d), d)
-                    .map(|c| (truth.run.source_of(d), c))
-            })
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| vec![Diagnostic::file_error(file, e)])?
+        super::camera::run_cameras(&truth.run).map_err(|e| vec![Diagnostic::file_error(file, e)])?
     } else {
         Vec::new()
     };
