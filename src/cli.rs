@@ -126,9 +126,16 @@ pub enum Command {
         out: PathBuf,
         /// File name of the results in every run folder (schemas/measured.schema.json). Default:
         /// measured.json if present, else the one measured*.json name the run folders hold
-        /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them.
+        /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them. A
+        /// name ending in .csv is read as XMALab's export of that run's trial: rigid-body
+        /// transformations (bodies named after phantoms), 3D points or 2D points (markers named
+        /// after beads; 2D points are triangulated with the exported true cameras).
         #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
         measured: Option<String>,
+        /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
+        /// the folder `rsasim export` wrote, where XMALab's exports were saved.
+        #[arg(long, value_name = "DIR", requires = "measured")]
+        results_in: Option<PathBuf>,
         /// Read every run's results from one CSV long table instead (columns in the README).
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
@@ -204,6 +211,34 @@ pub enum Command {
         /// parse). rsasim's own earlier results are always replaced.
         #[arg(long)]
         overwrite: bool,
+    },
+    /// Write an output folder as the files XMALab or Autoscoper open, with the exam's known
+    /// calibration: per run, a MayaCam 2.0 camera per detector (and DLT-11 coefficients, the box as
+    /// XMALab's calibration object and the model beads' reference coordinates for XMALab; a trial
+    /// `.cfg` per exposure for Autoscoper), the images as 16-bit TIFF sequences and the model
+    /// meshes (OBJ for XMALab, STL for Autoscoper). DEST must be a new folder; it is written
+    /// completely or not at all, and never inside OUT.
+    Export {
+        /// The output folder of a simulation (the ordinary layout, with truth.json in every run).
+        out: PathBuf,
+        /// The program to export for.
+        #[arg(long, value_parser = ["xmalab", "autoscoper"])]
+        to: String,
+        /// The new folder to write (one sub-folder per run).
+        #[arg(long, value_name = "DEST")]
+        dir: PathBuf,
+        /// Export only this run (repeatable), e.g. --run n0-r00. Default: every run.
+        #[arg(long = "run", value_name = "RUN_ID")]
+        runs: Vec<String>,
+        /// Write I_max − value, so that beads and implants are dark on a bright background as in
+        /// fluoroscopy (binary-mode images have them bright).
+        #[arg(long)]
+        invert: bool,
+        /// Cameras from the calibration a software measured (sources and detector poses of this
+        /// results file in every run folder, e.g. measured-rsasim-dlt-markers.json) instead of
+        /// the true calibration.
+        #[arg(long, value_name = "FILE_NAME")]
+        calibration_from: Option<String>,
     },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {

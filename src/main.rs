@@ -46,9 +46,31 @@ fn main() -> ExitCode {
                 overwrite,
             },
         ),
+        Some(Command::Export {
+            out,
+            to,
+            dir,
+            runs,
+            invert,
+            calibration_from,
+        }) => export(
+            &out,
+            &dir,
+            &rsasim::interop::export::Options {
+                target: if to == "autoscoper" {
+                    rsasim::interop::export::Target::Autoscoper
+                } else {
+                    rsasim::interop::export::Target::Xmalab
+                },
+                runs,
+                invert,
+                calibration_from,
+            },
+        ),
         Some(Command::Evaluate {
             out,
             measured,
+            results_in,
             csv,
             confidence,
             sided,
@@ -60,6 +82,7 @@ fn main() -> ExitCode {
             &out,
             truth.as_deref(),
             measured,
+            results_in,
             csv,
             confidence,
             &sided,
@@ -281,11 +304,41 @@ fn verify(out: &std::path::Path, images: Option<&std::path::Path>) -> Result<(),
     }
 }
 
+fn export(
+    out: &std::path::Path,
+    dir: &std::path::Path,
+    options: &rsasim::interop::export::Options,
+) -> Result<(), u8> {
+    use rsasim::interop::export::{self, Error};
+    let start = Instant::now();
+    let summary = export::export(out, dir, options).map_err(|e| match e {
+        Error::Input(errors) => report_errors(&errors),
+        Error::Write(why) => {
+            eprintln!(
+                "error: writing {} failed: {why}\n  = note: nothing was written there",
+                dir.display()
+            );
+            1
+        }
+    })?;
+    summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    eprintln!(
+        "rsasim export: {} run(s), {} files for {} in {:.1} s -> {}",
+        summary.runs,
+        summary.files,
+        options.target.name(),
+        start.elapsed().as_secs_f64(),
+        summary.dir.display()
+    );
+    Ok(())
+}
+
 #[allow(clippy::too_many_arguments)]
 fn evaluate(
     out: &std::path::Path,
     truth: Option<&std::path::Path>,
     measured: Option<String>,
+    results_in: Option<std::path::PathBuf>,
     csv: Option<std::path::PathBuf>,
     confidence: f64,
     sided: &str,
@@ -331,7 +384,10 @@ fn evaluate(
     let options = Options {
         measured: match (csv, measured) {
             (Some(file), _) => MeasuredSource::Csv(file),
-            (None, Some(name)) => MeasuredSource::PerRun(name),
+            (None, Some(name)) => match results_in {
+                Some(dir) => MeasuredSource::PerRunIn { name, dir },
+                None => MeasuredSource::PerRun(name),
+            },
             (None, None) => MeasuredSource::Auto,
         },
         confidence: stats::Confidence {

@@ -181,3 +181,56 @@ fn image_pitch_tags_are_the_documented_ones() {
     let r = rsasim::output::tiff::pixels_per_cm(0.3).unwrap();
     assert_eq!((r.n, r.d), (100, 3));
 }
+
+#[test]
+fn exported_pixel_coordinates_are_the_documented_ones() {
+    use rsasim::interop::camera::{dlt_pixel, opencv_pixel};
+    states("`x = u − 0.5, y = H − v − 0.5`");
+    states("`X = u + 0.5, Y = v + 0.5`");
+    states("row j of the exported TIFF is row `H − 1 − j`");
+    assert_eq!(opencv_pixel([10.25, 3.5], 200), [9.75, 196.0]);
+    assert_eq!(dlt_pixel([10.25, 3.5]), [10.75, 4.0]);
+    let flipped = rsasim::interop::export::export_pixels(&[1, 2, 3, 4, 5, 6], 2, 65535, false);
+    assert_eq!(flipped, [5, 6, 3, 4, 1, 2]);
+}
+
+#[test]
+fn the_exported_camera_is_the_documented_one() {
+    use rsasim::expand::DetectorState;
+    use rsasim::interop::camera::PinholeCamera;
+    states("axes `x = r, y = −c, z = −s`");
+    states("`c_x = a/pitch_x + W/2 − 0.5`, `c_y = H/2 − b/pitch_y − 0.5`");
+    let rotation = rotation_xyz_deg([0.0, 90.0, 0.0]);
+    let det = DetectorState {
+        id: "d".into(),
+        source: "s".into(),
+        position_mm: DVec3::new(-500.0, 0.0, 0.0),
+        rotation,
+        pixels: [100, 80],
+        pixel_pitch_mm: [0.5, 0.25],
+        bpp: 12,
+    };
+    // Source 1800 mm in front, 10 mm along r and −4 mm along c off the detector centre.
+    let pose = Pose {
+        position_mm: det.position_mm,
+        rotation,
+    };
+    let source = pose.to_world(DVec3::new(10.0, -4.0, 1800.0));
+    let cam = PinholeCamera::of_beamline(source, &det).unwrap();
+    assert!((cam.k[0][0] - 3600.0).abs() < 1e-9 && (cam.k[1][1] - 7200.0).abs() < 1e-9);
+    assert!((cam.k[0][2] - (20.0 + 50.0 - 0.5)).abs() < 1e-9);
+    assert!((cam.k[1][2] - (40.0 + 16.0 - 0.5)).abs() < 1e-9);
+    let r = DMat3::from_cols(
+        DVec3::from_array(cam.r[0]),
+        DVec3::from_array(cam.r[1]),
+        DVec3::from_array(cam.r[2]),
+    );
+    // The rows of R are r, −c, −s.
+    for (row, axis) in [
+        (r.x_axis, rotation.x_axis),
+        (r.y_axis, -rotation.y_axis),
+        (r.z_axis, -rotation.z_axis),
+    ] {
+        assert!((row - axis).length() < 1e-12);
+    }
+}

@@ -140,21 +140,35 @@ pub fn expected_adaptive(
         let fine = window(frame, 0, 0, w as u32, h as u32, s);
         let sources = sampling.sources(frame, source_mm);
         let cell = adaptive::TILE_PX * s;
-        let projected: Vec<Vec<Projected>> = sources
-            .par_iter()
-            .map(|(src, _)| {
-                parts
-                    .iter()
-                    .map(|p| Projected::new(&fine, *src, &p.object, cell))
-                    .collect()
+        // Sub-sources one after the other (each part projected once per sub-source, then every
+        // tile in parallel adds that sub-source's share): one sub-source's projections in memory.
+        let t = adaptive::TILE_PX as usize;
+        let mut means: Vec<[Vec<f64>; 3]> = tiles
+            .iter()
+            .map(|&(i0, j0)| {
+                let n = t.min(w - i0 as usize) * t.min(h - j0 as usize);
+                [vec![0.0; n], vec![0.0; n], vec![0.0; n]]
             })
             .collect();
-        let sum = |&(i0, j0): &(u32, u32)| {
-            tile_mean(
-                setup, parts, frame, beam, detector, &sources, &projected, &mask, s, i0, j0,
-            )
-        };
-        let means: Vec<[Vec<f64>; 3]> = tiles.par_iter().map(sum).collect();
+        for &(src, weight) in &sources {
+            let projected: Vec<Projected> = parts
+                .par_iter()
+                .map(|p| Projected::new(&fine, src, &p.object, cell))
+                .collect();
+            let seen = Seen {
+                source_mm: src,
+                weight,
+                projected: &projected,
+            };
+            means
+                .par_iter_mut()
+                .zip(&tiles)
+                .for_each(|(sums, &(i0, j0))| {
+                    add_tile(
+                        setup, parts, frame, beam, detector, &seen, &mask, s, i0, j0, sums,
+                    )
+                });
+        }
         let t = adaptive::TILE_PX as usize;
         for (&(i0, j0), [q, e, o]) in tiles.iter().zip(&means) {
             let (i0, j0) = (i0 as usize, j0 as usize);
@@ -180,62 +194,63 @@ pub fn expected_adaptive(
     out
 }
 
-/// The mean over all rays of the pixels of the tile at (`i0`, `j0`): quanta, energy and open
-/// signal, row-major over the tile. Only pixels of `mask` are traced; the others are left at
-/// their open-field value (not used).
+/// One sub-source: its position, its weight, and every part projected from it.
+struct Seen<'a> {
+    source_mm: DVec3,
+    weight: f64,
+    projected: &'a [Projected<'a>],
+}
+
+/// Adds one sub-source's share of the mean over all rays to the pixels of the tile at (`i0`,
+/// `j0`): quanta, energy and open signal in `sums`, row-major over the tile. Only pixels of
+/// `mask` are traced; the others get their open-field value (not used).
 #[allow(clippy::too_many_arguments)]
-fn tile_mean(
+fn add_tile(
     setup: &Setup,
     parts: &[Part],
     frame: &DetectorFrame,
     beam: &Beam,
     detector: &DetectorModel,
-    sources: &[(DVec3, f64)],
-    projected: &[Vec<Projected>],
+    seen: &Seen,
     mask: &[bool],
     s: u32,
     i0: u32,
     j0: u32,
-) -> [Vec<f64>; 3] {
+    sums: &mut [Vec<f64>; 3],
+) {
     let [w, h] = frame.pixels;
     let t = adaptive::TILE_PX;
     let (tw, th) = (t.min(w - i0), t.min(h - j0));
-    let n = (tw * th) as usize;
-    let mut sums = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
     let (columns, rows) = (i0 * s..(i0 + tw) * s, j0 * s..(j0 + th) * s);
     let wanted = |fi: u32, fj: u32| mask[(fj / s) as usize * w as usize + (fi / s) as usize];
-    let tile_frame = window(frame, i0, j0, tw, th, s);
-    let per_sample = 1.0 / f64::from(s * s);
-    for ((src, weight), parts_seen) in sources.iter().zip(projected) {
-        // The parts' lengths over the tile's samples, in the tile's own pixel coordinates.
-        let shadows: Vec<Option<PathLengths>> = parts_seen
-            .iter()
-            .map(|p| {
-                p.window(columns.clone(), rows.clone(), &wanted)
-                    .map(|pl| PathLengths {
-                        columns: 0..tw * s,
-                        rows: 0..th * s,
-                        length_mm: pl.length_mm,
-                    })
-            })
-            .collect();
-        let layers = layers_of(parts, &shadows);
-        let fluence = PointSourceFluence::new(&tile_frame, *src);
-        let scene = Scene {
-            width: (tw * s) as usize,
-            height: (th * s) as usize,
-            mu_per_mm: &setup.mu_per_mm,
-            layers: &layers,
-            fluence: Fluence::PointSource(&fluence),
-        };
-        let fine = response::expected(beam, detector, &scene);
-        let k = weight * per_sample;
-        let (s, tw) = (s as usize, tw as usize);
-        add_blocks(&fine.quanta, tw, s, k, &mut sums[0]);
-        add_blocks(&fine.energy_kev, tw, s, k, &mut sums[1]);
-        add_blocks(&fine.open_signal, tw, s, k, &mut sums[2]);
-    }
-    sums
+    // The parts' lengths over the tile's samples, in the tile's own pixel coordinates.
+    let shadows: Vec<Option<PathLengths>> = seen
+        .projected
+        .iter()
+        .map(|p| {
+            p.window(columns.clone(), rows.clone(), &wanted)
+                .map(|pl| PathLengths {
+                    columns: 0..tw * s,
+                    rows: 0..th * s,
+                    length_mm: pl.length_mm,
+                })
+        })
+        .collect();
+    let layers = layers_of(parts, &shadows);
+    let fluence = PointSourceFluence::new(&window(frame, i0, j0, tw, th, s), seen.source_mm);
+    let scene = Scene {
+        width: (tw * s) as usize,
+        height: (th * s) as usize,
+        mu_per_mm: &setup.mu_per_mm,
+        layers: &layers,
+        fluence: Fluence::PointSource(&fluence),
+    };
+    let fine = response::expected(beam, detector, &scene);
+    let k = seen.weight / f64::from(s * s);
+    let (s, tw) = (s as usize, tw as usize);
+    add_blocks(&fine.quanta, tw, s, k, &mut sums[0]);
+    add_blocks(&fine.energy_kev, tw, s, k, &mut sums[1]);
+    add_blocks(&fine.open_signal, tw, s, k, &mut sums[2]);
 }
 
 /// The footprint of the rays of a pixel ([`adaptive::Footprint`]) for the parts' depths: the

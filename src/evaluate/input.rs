@@ -244,6 +244,18 @@ pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, 
     })?;
     let text = strip_bom(text);
     let m: Measured = serde_json::from_str(text).map_err(|e| vec![json_error(file, &e)])?;
+    check_measured(file, text, m, truth)
+}
+
+/// Checks one run's results (read from `file`, whose JSON `text` locates entities for messages;
+/// empty when the results were not JSON): the run id, every entity id against `truth` (each at
+/// most once), every position (finite, within [`MAX_ABS_MM`]) and every rotation.
+pub fn check_measured(
+    file: &Path,
+    text: &str,
+    m: Measured,
+    truth: &Truth,
+) -> Result<RunMeasurement, Vec<Diagnostic>> {
     let mut errors = Vec::new();
     let err = |section: &str,
                index: Option<usize>,

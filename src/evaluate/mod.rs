@@ -26,7 +26,8 @@ use crate::output;
 use crate::scenario::{self, hex};
 use assemble::{MtpmPoints, Scored, assemble};
 use input::{
-    RunMeasurement, check_same_entities, load_measured_csv, load_measured_json, load_truths_from,
+    RunMeasurement, check_measured, check_same_entities, load_measured_csv, load_measured_json,
+    load_truths_from,
 };
 use stats::Confidence;
 use table::{Report, Table};
@@ -38,8 +39,17 @@ pub enum MeasuredSource {
     /// name the run folders hold (e.g. `measured-rsasim-dlt-markers.json`, said in a note);
     /// several names are an error listing them.
     Auto,
-    /// A file of this name in every run folder.
+    /// A file of this name in every run folder. A name ending in `.csv` is read as XMALab's
+    /// export of the run's trial ([`crate::interop::xmalab::read_export`]).
     PerRun(String),
+    /// A file of this name in `dir/<run id>/` for every run (e.g. the folder `rsasim export`
+    /// wrote, where XMALab's exports were saved).
+    PerRunIn {
+        /// The file name.
+        name: String,
+        /// The folder holding one sub-folder per run.
+        dir: PathBuf,
+    },
     /// One CSV long table for all runs.
     Csv(PathBuf),
 }
@@ -82,8 +92,13 @@ pub fn evaluate_with_truth(
     }
     let truth_root = truth_dir.unwrap_or(out);
     truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
-    let truths = load_truths_from(truth_root, out)?;
+    let mut truths = load_truths_from(truth_root, out)?;
     check_same_entities(&truths)?;
+    if let MeasuredSource::PerRunIn { dir, .. } = &options.measured {
+        for t in &mut truths {
+            t.dir = dir.join(&t.truth.run.id);
+        }
+    }
     let mut notes = Vec::new();
     let measured = match &options.measured {
         MeasuredSource::Auto => {
@@ -95,13 +110,13 @@ pub fn evaluate_with_truth(
     };
     let results_file = match &measured {
         MeasuredSource::Csv(file) => file.display().to_string(),
-        MeasuredSource::PerRun(name) => name.clone(),
+        MeasuredSource::PerRun(name) | MeasuredSource::PerRunIn { name, .. } => name.clone(),
         MeasuredSource::Auto => String::new(),
     };
     let measurements: BTreeMap<String, RunMeasurement> = match &measured {
         MeasuredSource::Auto => BTreeMap::new(),
         MeasuredSource::Csv(file) => load_measured_csv(file, &truths)?,
-        MeasuredSource::PerRun(name) => {
+        MeasuredSource::PerRun(name) | MeasuredSource::PerRunIn { name, .. } => {
             let mut found = BTreeMap::new();
             let mut errors = Vec::new();
             for t in &truths {
@@ -109,7 +124,13 @@ pub fn evaluate_with_truth(
                 if !file.exists() {
                     continue;
                 }
-                match load_measured_json(&file, &t.truth) {
+                let loaded = if name.to_ascii_lowercase().ends_with(".csv") {
+                    crate::interop::xmalab::read_export(&file, &t.truth)
+                        .and_then(|m| check_measured(&file, "", m, &t.truth))
+                } else {
+                    load_measured_json(&file, &t.truth)
+                };
+                match loaded {
                     Ok(m) => drop(found.insert(t.truth.run.id.clone(), m)),
                     Err(e) => errors.extend(e),
                 }
@@ -127,6 +148,9 @@ pub fn evaluate_with_truth(
                 "no run folder under {} holds a {name}",
                 out.join("runs").display()
             ),
+            MeasuredSource::PerRunIn { name, dir } => {
+                format!("no run folder under {} holds a {name}", dir.display())
+            }
             MeasuredSource::Csv(file) => format!("{} has no rows", file.display()),
         };
         return Err(vec![Diagnostic::file_error(out, what)

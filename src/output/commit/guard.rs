@@ -37,6 +37,10 @@ pub enum FolderKind {
     /// The report folder of `rsasim evaluate`: replaced when it holds the report marker (or only
     /// files an earlier evaluate wrote).
     Report,
+    /// The folder `rsasim export` writes for another program: always a new folder; anything
+    /// already there (even an earlier export, which XMALab or the user may have added to) is
+    /// refused.
+    Export,
 }
 
 /// An output path resolved to an absolute folder and a name, links in the folder resolved (the
@@ -212,6 +216,16 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
     let force = match kind {
         FolderKind::Simulation { force, .. } => *force,
         FolderKind::Report => true,
+        FolderKind::Export => {
+            return Err(refuse(
+                shown,
+                format!(
+                    "the export folder {} already exists; rsasim export writes only new folders",
+                    shown.display()
+                ),
+                "give a new folder with --dir (results saved there by XMALab are never overwritten)",
+            ));
+        }
     };
     if !force {
         return Err(refuse(
@@ -254,6 +268,7 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
     let recognised = match kind {
         FolderKind::Simulation { .. } => simulation_output(&target.path),
         FolderKind::Report => report_folder(&target.path),
+        FolderKind::Export => Err("an existing folder".to_string()),
     };
     if let (FolderKind::Simulation { .. }, Ok(())) = (kind, &recognised) {
         let foreign = foreign_files(&target.path);
@@ -285,6 +300,7 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
                 FolderKind::Report => {
                     "give a new report folder with --report, or move that folder away first"
                 }
+                FolderKind::Export => "give a new folder with --dir",
             },
         )
     })

@@ -1,0 +1,624 @@
+//! XMALab's files: what `rsasim export --to xmalab` writes for it (the calibration object's
+//! frame specification and references, the model markers' reference coordinates) and what it
+//! exports that `rsasim evaluate` reads back (rigid-body transformations, 3-D points).
+//!
+//! Layouts, from XMALab's public code (`CalibrationObject::loadCoords`, `Trial::loadMarkersFromCSV`,
+//! `Trial::saveRigidBodyTransformations`, `Trial::save3dPoints`, `RigidBody::getTransformationMatrix`):
+//!
+//! - **Frame specification**: a header line, then one bead per line `x,y,z` (mm, box frame).
+//! - **References**: lines `<1-based index> <name>` (name: letters, digits and spaces, at most 20).
+//! - **Marker reference coordinates** ("Import CSV" in the Points window): line 1
+//!   `<name>_x,<name>_y,<name>_z,…`, line 2 the coordinates, mm, in the model's own frame.
+//! - **Rigid-body transformations** (one file): optional `Frame` column, then per body 16 columns
+//!   `<body>_R11,_R12,_R13,_01,_R21,_R22,_R23,_02,_R31,_R32,_R33,_03,_TX,_TY,_TZ,_1` (a filtered
+//!   export adds `_<cutoff>Hz` to every name); one row per frame; `NaN` for an untracked frame.
+//!   The 3×3 block R (read row by row) is XMALab's world → body rotation, so the body's axes in the
+//!   world (the columns of rsasim's rotation) are the rows of R; (TX, TY, TZ) is the body origin
+//!   in the world, mm.
+//! - **3-D points** (one file): optional `Frame` column, then per marker `<name>_X,_Y,_Z`, mm,
+//!   world frame; `NaN` for an untracked marker.
+//! - **2-D points** (one file, XMALab's default pixels: 0-based, y down): optional `Frame` column,
+//!   then per marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major);
+//!   pixels of the exported (flipped) images. They are triangulated with the exported true
+//!   cameras.
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use crate::diagnostic::{Diagnostic, cut};
+use crate::geometry::rotation_rows;
+use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
+use crate::output::{MEASURED_FORMAT, Measured, Truth};
+use crate::reconstruct::rigid::{fit_rigid, triangulate};
+
+/// The frame specification of a calibration object: header, then `x,y,z` per bead.
+pub fn frame_specification(beads_mm: &[DVec3]) -> String {
+    let mut s = String::from("x,y,z\n");
+    for b in beads_mm {
+        s += &format!("{},{},{}\n", b.x, b.y, b.z);
+    }
+    s
+}
+
+/// Indices of four beads spread far apart: the first bead, then repeatedly the bead farthest from
+/// those already chosen (fewer when there are fewer beads).
+pub fn reference_beads(beads_mm: &[DVec3]) -> Vec<usize> {
+    let mut chosen: Vec<usize> = Vec::new();
+    if beads_mm.is_empty() {
+        return chosen;
+    }
+    chosen.push(0);
+    while chosen.len() < 4.min(beads_mm.len()) {
+        let next = (0..beads_mm.len())
+            .filter(|i| !chosen.contains(i))
+            .max_by(|&a, &b| {
+                let d = |i: usize| {
+                    chosen
+                        .iter()
+                        .map(|&c| beads_mm[i].distance(beads_mm[c]))
+                        .fold(f64::INFINITY, f64::min)
+                };
+                d(a).total_cmp(&d(b)).then(b.cmp(&a))
+            });
+        match next {
+            Some(n) => chosen.push(n),
+            None => break,
+        }
+    }
+    chosen
+}
+
+/// A name XMALab's references reader accepts: letters and digits of `id` (others dropped), at
+/// most 20 characters, or `bead<index>` when nothing is left.
+fn reference_name(id: &str, index: usize) -> String {
+    let n: String = id
+        .chars()
+        .filter(char::is_ascii_alphanumeric)
+        .take(20)
+        .collect();
+    if n.is_empty() {
+        format!("bead{index}")
+    } else {
+        n
+    }
+}
+
+/// The references file: `<1-based index> <name>` for each chosen bead.
+pub fn references(ids: &[String], chosen: &[usize]) -> String {
+    chosen
+        .iter()
+        .map(|&i| format!("{} {}\n", i + 1, reference_name(&ids[i], i + 1)))
+        .collect()
+}
+
+/// The marker reference coordinates XMALab imports with "Import CSV": names and local
+/// coordinates of a model's beads, on two lines.
+pub fn marker_reference_csv(beads: &[(String, DVec3)]) -> String {
+    let names: Vec<String> = beads
+        .iter()
+        .map(|(id, _)| format!("{id}_x,{id}_y,{id}_z"))
+        .collect();
+    let coords: Vec<String> = beads
+        .iter()
+        .map(|(_, p)| format!("{},{},{}", p.x, p.y, p.z))
+        .collect();
+    format!("{}\n{}\n", names.join(","), coords.join(","))
+}
+
+/// The 16 column suffixes of one rigid body, in XMALab's order.
+const BODY_COLUMNS: [&str; 16] = [
+    "R11", "R12", "R13", "01", "R21", "R22", "R23", "02", "R31", "R32", "R33", "03", "TX", "TY",
+    "TZ", "1",
+];
+
+/// One cell of a CSV line with its 1-based character column.
+struct Cell<'a> {
+    text: &'a str,
+    column: usize,
+}
+
+fn cells(line: &str) -> Vec<Cell<'_>> {
+    let mut out = Vec::new();
+    let mut column = 1;
+    for part in line.split(',') {
+        let lead = part.chars().count() - part.trim_start().chars().count();
+        out.push(Cell {
+            text: part.trim(),
+            column: column + lead,
+        });
+        column += part.chars().count() + 1;
+    }
+    out
+}
+
+/// A name without XMALab's filter suffix `_<cutoff>Hz`.
+fn without_filter_suffix(name: &str) -> &str {
+    if let Some(stem) = name.strip_suffix("Hz")
+        && let Some(at) = stem.rfind('_')
+        && stem[at + 1..].parse::<f64>().is_ok()
+    {
+        return &name[..at];
+    }
+    name
+}
+
+/// Reads an XMALab export for one run: rigid-body transformations or 3-D points, told apart by
+/// the header. `truth` gives the run id and the phantoms (ids, beads) names are matched against.
+pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnostic>> {
+    let bytes = std::fs::read(file)
+        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        vec![
+            Diagnostic::file_error(file, format!("not UTF-8 text: {e}"))
+                .with_help("give the CSV file XMALab exported"),
+        ]
+    })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let lines: Vec<(usize, &str)> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+        .filter(|(_, l)| !l.trim().is_empty())
+        .collect();
+    let at = |line: usize, column: usize, message: String, help: &str| {
+        let mut d = Diagnostic::file_error(file, message).with_help(help);
+        d.line_col = Some((line, column));
+        vec![d]
+    };
+    let Some(&(header_line, header)) = lines.first() else {
+        return Err(vec![
+            Diagnostic::file_error(file, "the file is empty").with_help(
+                "export from XMALab with the header row: File → Export → Rigid body transformations (or 3D points)",
+            ),
+        ]);
+    };
+    let head = cells(header);
+    let frame_column = head.first().is_some_and(|c| c.text == "Frame");
+    let names = &head[usize::from(frame_column)..];
+    let rigid = names
+        .first()
+        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_R11"));
+    let planar = names
+        .first()
+        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_cam1_X"));
+    let points = names
+        .first()
+        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_X"));
+    if !rigid && !points {
+        let c = names.first().map_or(1, |c| c.column);
+        return Err(at(
+            header_line,
+            c,
+            format!(
+                "the header `{}` is none of XMALab's rigid-body transformations (`<body>_R11,…`), 3D points (`<marker>_X,…`) or 2D points (`<marker>_cam1_X,…`)",
+                cut(header)
+            ),
+            "export from XMALab with \"header row\" checked, all bodies (or markers) in one file",
+        ));
+    }
+    let data: Vec<(usize, &str)> = lines[1..].to_vec();
+    if data.len() != 1 {
+        let (line, _) = data.get(1).copied().unwrap_or((header_line, ""));
+        return Err(at(
+            line,
+            1,
+            format!(
+                "the file holds {} frame(s); an exported rsasim run is a one-frame trial",
+                data.len()
+            ),
+            "save the export of each run's trial into that run's folder (one data row per file)",
+        ));
+    }
+    let (row_line, row) = data[0];
+    let values = cells(row);
+    if values.len() != head.len() {
+        return Err(at(
+            row_line,
+            values.last().map_or(1, |c| c.column),
+            format!(
+                "the row has {} values but the header {} columns",
+                values.len(),
+                head.len()
+            ),
+            "every row needs as many values as the header",
+        ));
+    }
+    let mut numbers = Vec::with_capacity(names.len());
+    for c in &values[usize::from(frame_column)..] {
+        let x = if c.text.eq_ignore_ascii_case("nan") {
+            f64::NAN
+        } else {
+            c.text
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| {
+                    at(
+                        row_line,
+                        c.column,
+                        format!("`{}` is not a number", cut(c.text)),
+                        "XMALab writes decimal numbers or NaN",
+                    )
+                })?
+        };
+        numbers.push(x);
+    }
+    let software = format!(
+        "XMALab ({} {})",
+        if rigid {
+            "rigid-body transformations"
+        } else if planar {
+            "2D points"
+        } else {
+            "3D points"
+        },
+        file.file_name().unwrap_or_default().to_string_lossy()
+    );
+    let mut measured = Measured {
+        format: MEASURED_FORMAT.into(),
+        run: truth.run.id.clone(),
+        software,
+        methods: None,
+        sources: Vec::new(),
+        detectors: Vec::new(),
+        phantoms: Vec::new(),
+    };
+    let phantom_ids: Vec<&str> = truth.run.phantoms.iter().map(|p| p.id.as_str()).collect();
+    if rigid {
+        if names.len() % 16 != 0 {
+            return Err(at(
+                header_line,
+                names.last().map_or(1, |c| c.column),
+                format!(
+                    "{} transformation columns is not a multiple of 16",
+                    names.len()
+                ),
+                "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
+            ));
+        }
+        let mut bodies = Vec::new();
+        for group in names.chunks(16) {
+            let first = without_filter_suffix(group[0].text);
+            let Some(body) = first.strip_suffix("_R11") else {
+                return Err(at(
+                    header_line,
+                    group[0].column,
+                    format!("column `{}` should be `<body>_R11`", cut(group[0].text)),
+                    "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
+                ));
+            };
+            for (c, suffix) in group.iter().zip(BODY_COLUMNS) {
+                if without_filter_suffix(c.text) != format!("{body}_{suffix}") {
+                    return Err(at(
+                        header_line,
+                        c.column,
+                        format!("column `{}` should be `{body}_{suffix}`", cut(c.text)),
+                        "the 16 columns of a body are _R11,_R12,_R13,_01,_R21,_R22,_R23,_02,_R31,_R32,_R33,_03,_TX,_TY,_TZ,_1",
+                    ));
+                }
+            }
+            if !phantom_ids.contains(&body) {
+                return Err(at(
+                    header_line,
+                    group[0].column,
+                    format!(
+                        "rigid body `{}` is not a phantom of run {}",
+                        cut(body),
+                        truth.run.id
+                    ),
+                    &format!(
+                        "name each rigid body in XMALab after its phantom: {}",
+                        phantom_ids.join(", ")
+                    ),
+                ));
+            }
+            bodies.push(body);
+        }
+        for (b, body) in bodies.into_iter().enumerate() {
+            let m = &numbers[b * 16..b * 16 + 16];
+            if m.iter().any(|x| x.is_nan()) {
+                continue; // not tracked in this frame
+            }
+            let bottom = [m[3], m[7], m[11], m[15]];
+            if (bottom[0].abs() + bottom[1].abs() + bottom[2].abs() + (bottom[3] - 1.0).abs())
+                > 1e-6
+            {
+                let c = &values[usize::from(frame_column) + b * 16 + 3];
+                return Err(at(
+                    row_line,
+                    c.column,
+                    format!(
+                        "body `{body}`: _01, _02, _03 must be 0 and _1 must be 1, not {bottom:?}"
+                    ),
+                    "give the file as XMALab wrote it",
+                ));
+            }
+            // R (rows) maps world to body; rsasim's rotation has the body axes as columns,
+            // which are R's rows: rotation = Rᵀ.
+            let world_to_body = [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]];
+            let rotation = [0, 1, 2].map(|i| [0, 1, 2].map(|j| world_to_body[j][i]));
+            measured.phantoms.push(MeasuredPose {
+                id: body.to_string(),
+                position_mm: [m[12], m[13], m[14]],
+                rotation: Some(rotation),
+                markers: Vec::new(),
+                quality: None,
+            });
+        }
+        return Ok(measured);
+    }
+    // Points: every marker named after a bead; 2-D points are triangulated with the exported
+    // (true) cameras.
+    let cameras = if planar {
+        super::camera::run_cameras(&truth.run).map_err(|e| vec![Diagnostic::file_error(file, e)])?
+    } else {
+        Vec::new()
+    };
+    let per_marker = if planar { 2 * cameras.len() } else { 3 };
+    let suffixes: Vec<String> = if planar {
+        (1..=cameras.len())
+            .flat_map(|j| [format!("_cam{j}_X"), format!("_cam{j}_Y")])
+            .collect()
+    } else {
+        vec!["_X".into(), "_Y".into(), "_Z".into()]
+    };
+    if per_marker == 0 || names.len() % per_marker != 0 {
+        return Err(at(
+            header_line,
+            names.last().map_or(1, |c| c.column),
+            format!(
+                "{} point columns is not a multiple of {per_marker}",
+                names.len()
+            ),
+            &format!(
+                "each marker has {per_marker} columns: <name>{}",
+                suffixes.join(",<name>")
+            ),
+        ));
+    }
+    let mut found: Vec<(usize, usize, DVec3)> = Vec::new(); // (phantom index, marker index, point)
+    let mut seen: Vec<(usize, usize)> = Vec::new();
+    for (k, group) in names.chunks(per_marker).enumerate() {
+        let first = without_filter_suffix(group[0].text);
+        let Some(name) = first.strip_suffix(suffixes[0].as_str()) else {
+            return Err(at(
+                header_line,
+                group[0].column,
+                format!(
+                    "column `{}` should be `<marker>{}`",
+                    cut(group[0].text),
+                    suffixes[0]
+                ),
+                &format!(
+                    "each marker has {per_marker} columns: <name>{}",
+                    suffixes.join(",<name>")
+                ),
+            ));
+        };
+        for (c, suffix) in group.iter().zip(&suffixes) {
+            if without_filter_suffix(c.text) != format!("{name}{suffix}") {
+                return Err(at(
+                    header_line,
+                    c.column,
+                    format!("column `{}` should be `{name}{suffix}`", cut(c.text)),
+                    &format!(
+                        "each marker has {per_marker} columns: <name>{}",
+                        suffixes.join(",<name>")
+                    ),
+                ));
+            }
+        }
+        let (pi, mi) = match_bead(truth, name)
+            .map_err(|(message, help)| at(header_line, group[0].column, message, &help))?;
+        if let Some(before) = seen.iter().position(|s| *s == (pi, mi)) {
+            return Err(at(
+                header_line,
+                group[0].column,
+                format!(
+                    "marker `{}` names the same bead as marker {} of the header",
+                    cut(name),
+                    before + 1
+                ),
+                "export each bead once",
+            ));
+        }
+        seen.push((pi, mi));
+        let v = &numbers[k * per_marker..(k + 1) * per_marker];
+        let point = if planar {
+            let rays: Vec<(DVec3, DVec3)> = cameras
+                .iter()
+                .zip(v.chunks(2))
+                .filter(|(_, xy)| !xy[0].is_nan() && !xy[1].is_nan())
+                .map(|((source, cam), xy)| (*source, cam.ray_direction([xy[0], xy[1]])))
+                .collect();
+            let (p, _) = triangulate(&rays);
+            p
+        } else {
+            DVec3::new(v[0], v[1], v[2])
+        };
+        if point.is_finite() {
+            found.push((pi, mi, point));
+        }
+    }
+    measured.phantoms = fit_phantoms(truth, &found);
+    Ok(measured)
+}
+
+/// The (phantom, bead) indices a marker name designates: a bead id unique over the run's
+/// phantoms, or `<phantom>_<bead>`; otherwise a message and a help.
+fn match_bead(truth: &Truth, name: &str) -> Result<(usize, usize), (String, String)> {
+    let matches: Vec<(usize, usize)> = truth
+        .run
+        .phantoms
+        .iter()
+        .enumerate()
+        .flat_map(|(pi, p)| {
+            p.markers.iter().enumerate().filter_map(move |(mi, m)| {
+                (m.id == name || format!("{}_{}", p.id, m.id) == name).then_some((pi, mi))
+            })
+        })
+        .collect();
+    match matches.as_slice() {
+        [one] => Ok(*one),
+        [] => Err((
+            format!(
+                "marker `{}` is not a bead of run {}",
+                cut(name),
+                truth.run.id
+            ),
+            format!(
+                "name each marker after its bead (e.g. {}), or <phantom>_<bead> when bead ids repeat",
+                truth
+                    .run
+                    .phantoms
+                    .iter()
+                    .flat_map(|p| p.markers.iter().map(|m| m.id.as_str()))
+                    .take(3)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+        _ => Err((
+            format!("marker `{}` names a bead of several phantoms", cut(name)),
+            "name it <phantom>_<bead>".into(),
+        )),
+    }
+}
+
+/// The pose of every phantom with at least three measured beads: the least-squares rigid fit of
+/// its bead table (local frame) to the measured points, with the points and the fit's quality.
+fn fit_phantoms(truth: &Truth, found: &[(usize, usize, DVec3)]) -> Vec<MeasuredPose> {
+    let mut out = Vec::new();
+    for (pi, phantom) in truth.run.phantoms.iter().enumerate() {
+        let mine: Vec<&(usize, usize, DVec3)> = found.iter().filter(|f| f.0 == pi).collect();
+        if mine.len() < 3 {
+            continue;
+        }
+        let pose = phantom.pose();
+        let local: Vec<DVec3> = mine
+            .iter()
+            .map(|f| pose.to_local(phantom.markers[f.1].position_mm))
+            .collect();
+        let world: Vec<DVec3> = mine.iter().map(|f| f.2).collect();
+        let Ok(fit) = fit_rigid(&local, &world) else {
+            continue;
+        };
+        out.push(MeasuredPose {
+            id: phantom.id.clone(),
+            position_mm: fit.pose.position_mm.to_array(),
+            rotation: Some(rotation_rows(&fit.pose.rotation)),
+            markers: mine
+                .iter()
+                .map(|f| MeasuredPoint {
+                    id: phantom.markers[f.1].id.clone(),
+                    position_mm: f.2.to_array(),
+                    quality: None,
+                })
+                .collect(),
+            quality: Some(FitQuality {
+                beads_used: Some(mine.len()),
+                mean_error_mm: Some(fit.mean_error_mm),
+                condition_number: Some(fit.condition_number),
+                ..Default::default()
+            }),
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_beads_are_spread() {
+        let b = [
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(0.0, 10.0, 0.0),
+            DVec3::new(0.0, 0.0, 10.0),
+        ];
+        assert_eq!(reference_beads(&b), vec![0, 2, 3, 4]);
+        assert_eq!(
+            references(
+                &[
+                    "F1-00-01".into(),
+                    "x".into(),
+                    "F1-00-03".into(),
+                    "-".into(),
+                    "C1".into()
+                ],
+                &[0, 2, 3]
+            ),
+            "1 F10001\n3 F10003\n4 bead4\n"
+        );
+    }
+
+    #[test]
+    fn filter_suffixes_are_removed() {
+        assert_eq!(without_filter_suffix("femur_R11_25Hz"), "femur_R11");
+        assert_eq!(without_filter_suffix("femur_R11_2.5Hz"), "femur_R11");
+        assert_eq!(without_filter_suffix("femur_R11"), "femur_R11");
+        assert_eq!(without_filter_suffix("a_bHz"), "a_bHz");
+    }
+
+    #[test]
+    fn marker_reference_csv_has_two_lines() {
+        let s = marker_reference_csv(&[
+            ("K1".into(), DVec3::new(1.0, 2.5, -3.0)),
+            ("K2".into(), DVec3::new(0.0, 0.0, 4.0)),
+        ]);
+        assert_eq!(s, "K1_x,K1_y,K1_z,K2_x,K2_y,K2_z\n1,2.5,-3,0,0,4\n");
+    }
+
+    #[test]
+    fn a_second_body_without_its_r11_column_is_an_error_not_a_panic() {
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("x.csv");
+        let names = [
+            "R11", "R12", "R13", "01", "R21", "R22", "R23", "02", "R31", "R32", "R33", "03", "TX",
+            "TY", "TZ", "1",
+        ];
+        let mut header: Vec<String> = names.iter().map(|n| format!("a_{n}")).collect();
+        header.extend((0..16).map(|_| "é".to_string()));
+        let row = vec!["0"; 32].join(",");
+        std::fs::write(&file, format!("{}\n{row}\n", header.join(","))).unwrap();
+        let truth: Truth = serde_json::from_str(
+            r#"{"format": "rsasim-truth/1", "program": "rsasim test", "scenario": "t",
+                "id": "n0-r00", "noise_level_index": 0, "noise_level": 0.0, "run_index": 0,
+                "geometry_stream": "g",
+                "box_pose_in_scanner": {"position_mm": [0, 0, 0],
+                                        "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+                "sources": [], "detectors": [], "exposures": [], "images": [],
+                "phantoms": [{"id": "a", "kind": "beads", "position_mm": [0, 0, 0],
+                              "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                              "markers": [{"id": "K1", "position_mm": [0, 0, 0], "diameter_mm": 1}]}]}"#,
+        )
+        .unwrap();
+        let e = read_export(&file, &truth).unwrap_err();
+        assert_eq!(e[0].line_col.map(|l| l.0), Some(1));
+        assert!(
+            e[0].message.contains("should be `<body>_R11`"),
+            "{}",
+            e[0].message
+        );
+        std::fs::write(&file, "K1_X,K1_Y,K1_Z,é,b,c\n1,2,3,4,5,6\n").unwrap();
+        let e = read_export(&file, &truth).unwrap_err();
+        assert!(
+            e[0].message.contains("should be `<marker>_X`"),
+            "{}",
+            e[0].message
+        );
+    }
+
+    #[test]
+    fn cells_know_their_columns() {
+        let c = cells("Frame, a_R11,b");
+        assert_eq!(
+            c.iter().map(|c| (c.text, c.column)).collect::<Vec<_>>(),
+            vec![("Frame", 1), ("a_R11", 8), ("b", 14)]
+        );
+    }
+}

@@ -1,0 +1,545 @@
+//! `rsasim export` and XMALab's exports read by `rsasim evaluate`, end to end: the exported
+//! DLT-11 and MayaCam cameras reproject every bead onto its truth pixel; the images are the run's,
+//! flipped and scaled; hand-made XMALab CSVs in the exact layout give the residuals put into them;
+//! bad files and folders are refused with exit code 2.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{read_tiff, rsasim, run_scenario, truths};
+use rsasim::evaluate::stats::Confidence;
+use rsasim::evaluate::table::{Report, Table};
+use rsasim::evaluate::{MeasuredSource, Options, evaluate};
+use rsasim::output::Truth;
+
+/// The golden small biplanar scenario (240² px, 4 runs) and its XMALab export, written once.
+fn exported(to: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sb");
+    run_scenario("scenarios/golden/small_biplanar.toml", &out, &[]);
+    let dest = tmp.path().join(to);
+    let o = rsasim(
+        &[
+            "export",
+            out.to_str().unwrap(),
+            "--to",
+            to,
+            "--dir",
+            dest.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (tmp, out, dest)
+}
+
+/// Numbers of a comma-separated line.
+fn numbers(line: &str) -> Vec<f64> {
+    line.split(',').map(|v| v.trim().parse().unwrap()).collect()
+}
+
+/// Reads a MayaCam 2.0 file by its documented line numbers: (W, H, K, R, t).
+fn mayacam(file: &Path) -> ([f64; 2], [[f64; 3]; 3], [[f64; 3]; 3], [f64; 3]) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let l: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        (l[0], l[3], l[8], l[13]),
+        ("image size", "camera matrix", "rotation", "translation")
+    );
+    let m3 = |a: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(numbers(l[a + i])).unwrap());
+    let s = numbers(l[1]);
+    (
+        [s[0], s[1]],
+        m3(4),
+        m3(9),
+        [0, 1, 2].map(|i| numbers(l[14 + i])[0]),
+    )
+}
+
+/// Every bead of every image of `truth` with its box-frame centre and truth pixel, for the
+/// beads whose centre falls on the detector.
+fn beads(truth: &Truth) -> Vec<(String, [f64; 3], [f64; 2])> {
+    let mut out = Vec::new();
+    for image in &truth.images {
+        for m in image.markers.iter().filter(|m| m.inside) {
+            let p = truth
+                .run
+                .phantoms
+                .iter()
+                .find(|p| p.id == m.phantom)
+                .unwrap()
+                .markers
+                .iter()
+                .find(|b| b.id == m.id)
+                .unwrap()
+                .position_mm;
+            out.push((image.detector.clone(), p.to_array(), m.pixel));
+        }
+    }
+    out
+}
+
+#[test]
+fn exported_dlt_and_mayacam_reproject_every_bead_onto_its_truth_pixel() {
+    let (_tmp, out, dest) = exported("xmalab");
+    let mut checked = 0;
+    let mut worst_dlt: f64 = 0.0;
+    let mut worst_cam: f64 = 0.0;
+    for (_, truth) in truths(&out) {
+        let run = dest.join(&truth.run.id);
+        let dlt_text = std::fs::read_to_string(run.join("calibration/dlt11.csv")).unwrap();
+        let rows: Vec<Vec<f64>> = dlt_text.lines().map(numbers).collect();
+        assert_eq!(rows.len(), 11);
+        for (d, det) in truth.run.detectors.iter().enumerate() {
+            let l: Vec<f64> = rows.iter().map(|r| r[d]).collect();
+            let (size, k, r, t) = mayacam(&run.join(format!("calibration/{}_MayaCam.txt", det.id)));
+            assert_eq!(size, [det.pixels[0] as f64, det.pixels[1] as f64]);
+            let h = det.pixels[1] as f64;
+            for (on, x, uv) in beads(&truth).into_iter().filter(|b| b.0 == det.id) {
+                assert_eq!(on, det.id);
+                // DLT-11: 1-based, origin bottom-left: (u + 0.5, v + 0.5) in rsasim's pixels.
+                let den = l[8] * x[0] + l[9] * x[1] + l[10] * x[2] + 1.0;
+                let dx = (l[0] * x[0] + l[1] * x[1] + l[2] * x[2] + l[3]) / den;
+                let dy = (l[4] * x[0] + l[5] * x[1] + l[6] * x[2] + l[7]) / den;
+                let e = (dx - (uv[0] + 0.5)).hypot(dy - (uv[1] + 0.5));
+                worst_dlt = worst_dlt.max(e);
+                // MayaCam: K·(R·x + t), 0-based, origin top-left of the flipped image.
+                let c: Vec<f64> = (0..3)
+                    .map(|i| (0..3).map(|j| r[i][j] * x[j]).sum::<f64>() + t[i])
+                    .collect();
+                let px = (0..3).map(|i| (0..3).map(|j| k[i][j] * c[j]).sum::<f64>());
+                let p: Vec<f64> = px.collect();
+                let (cx, cy) = (p[0] / p[2], p[1] / p[2]);
+                let e = (cx - (uv[0] - 0.5)).hypot(cy - (h - uv[1] - 0.5));
+                worst_cam = worst_cam.max(e);
+                checked += 1;
+            }
+        }
+    }
+    eprintln!(
+        "{checked} bead images: worst DLT error {worst_dlt:e} px, worst MayaCam error {worst_cam:e} px"
+    );
+    assert!(checked > 100, "only {checked} beads checked");
+    assert!(worst_dlt <= 1e-6, "DLT reprojection error {worst_dlt} px");
+    assert!(
+        worst_cam <= 1e-6,
+        "MayaCam reprojection error {worst_cam} px"
+    );
+}
+
+#[test]
+fn exported_images_are_the_runs_flipped_and_scaled() {
+    let (_tmp, out, dest) = exported("xmalab");
+    // The last run has background noise (level 0.45): many grey levels, not only 0 and I_max.
+    let (dir, truth) = truths(&out).pop().unwrap();
+    let image = &truth.images[0];
+    let stem = format!("{}-{}", image.exposure, image.detector);
+    let (w, h, original) = read_tiff(&dir.join(format!("{stem}.tiff")));
+    let (w2, h2, exported) = read_tiff(
+        &dest
+            .join(&truth.run.id)
+            .join(format!("images/{stem}/{stem}.0001.tif")),
+    );
+    assert_eq!((w, h), (w2, h2));
+    let det = truth
+        .run
+        .detectors
+        .iter()
+        .find(|d| d.id == image.detector)
+        .unwrap();
+    let i_max = f64::from(det.i_max());
+    let mut levels = std::collections::BTreeSet::new();
+    for j in 0..h as usize {
+        for i in 0..w as usize {
+            let v = f64::from(original[(h as usize - 1 - j) * w as usize + i]);
+            let want = (v * 65535.0 / i_max).round();
+            assert_eq!(
+                f64::from(exported[j * w as usize + i]),
+                want,
+                "pixel ({i}, {j})"
+            );
+            levels.insert(exported[j * w as usize + i]);
+        }
+    }
+    assert!(levels.contains(&65535) && levels.len() > 2, "{levels:?}");
+}
+
+#[test]
+fn autoscoper_export_has_a_trial_per_exposure_whose_files_exist() {
+    let (_tmp, out, dest) = exported("autoscoper");
+    let (_, truth) = truths(&out).remove(0);
+    let run = dest.join(&truth.run.id);
+    for exposure in &truth.run.exposures {
+        let cfg = std::fs::read_to_string(run.join(format!("{}.cfg", exposure.id))).unwrap();
+        let mut cameras = 0;
+        for line in cfg.lines().filter(|l| !l.starts_with('#')) {
+            let Some((key, value)) = line.split_once(' ') else {
+                continue;
+            };
+            match key {
+                "mayaCam_csv" | "MeshFile" => {
+                    assert!(run.join(value).is_file(), "{value}");
+                    cameras += usize::from(key == "mayaCam_csv");
+                }
+                "CameraRootDir" => {
+                    assert!(!value.starts_with('/') && value.ends_with('/'), "{value}");
+                    let tifs = std::fs::read_dir(run.join(value)).unwrap().count();
+                    assert_eq!(tifs, 1, "{value}");
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(cameras, truth.run.detectors.len());
+    }
+    assert!(run.join("models/femur.stl").is_file());
+    // The same cameras as the XMALab export would hold: no DLT or calibration object here.
+    assert!(!run.join("calibration/dlt11.csv").exists());
+}
+
+fn table<'a>(r: &'a Report, id: &str) -> &'a Table {
+    r.tables.iter().find(|t| t.id == id).unwrap()
+}
+
+fn trueness(t: &Table, level: usize, group: &str, column: &str) -> f64 {
+    let mut k = 0;
+    for g in &t.groups {
+        for c in &g.columns {
+            if g.label.starts_with(group) && c.label == column {
+                return t.rows[level].cells[k].clone().unwrap().trueness;
+            }
+            k += 1;
+        }
+    }
+    panic!("no column {group}/{column}")
+}
+
+/// Shortest round-trip text of a number, as XMALab's CSVs hold plain decimals.
+fn num(x: f64) -> String {
+    format!("{x}")
+}
+
+/// The known offset of every hand-made XMALab result, mm (box frame).
+const OFFSET: [f64; 3] = [0.1, -0.2, 0.05];
+
+/// A rigid-body transformation export of XMALab, exact layout, for body `femur` at the truth
+/// pose moved by [`OFFSET`]: `Frame` column, 16 columns, the 3×3 block = world → body rotation.
+fn rigid_body_csv(truth: &Truth) -> String {
+    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+    let names = [
+        "R11", "R12", "R13", "01", "R21", "R22", "R23", "02", "R31", "R32", "R33", "03", "TX",
+        "TY", "TZ", "1",
+    ];
+    let header: Vec<String> = names.iter().map(|n| format!("femur_{n}")).collect();
+    // World → body rows are the body axes, i.e. the columns of rsasim's rotation.
+    let axes = [p.rotation.x_axis, p.rotation.y_axis, p.rotation.z_axis];
+    let pos = p.position_mm.to_array();
+    let mut v = Vec::new();
+    for a in axes {
+        v.extend([num(a.x), num(a.y), num(a.z), "0".into()]);
+    }
+    v.extend((0..3).map(|i| num(pos[i] + OFFSET[i])));
+    v.push("1".into());
+    format!("Frame,{}\n1,{}\n", header.join(","), v.join(","))
+}
+
+/// A 3-D point export of XMALab for every bead of `femur`, moved by [`OFFSET`].
+fn points_csv(truth: &Truth) -> String {
+    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+    let header: Vec<String> = p
+        .markers
+        .iter()
+        .map(|m| format!("{0}_X,{0}_Y,{0}_Z", m.id))
+        .collect();
+    let values: Vec<String> = p
+        .markers
+        .iter()
+        .map(|m| {
+            let x = m.position_mm.to_array();
+            (0..3)
+                .map(|i| num(x[i] + OFFSET[i]))
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    format!("{}\n{}\n", header.join(","), values.join(","))
+}
+
+/// The evaluate test scenario (16² px, 2 levels × 20 runs, a femur with 6 beads) and a folder
+/// of per-run result folders, as an export gives.
+fn simulated_with_results_folder() -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("eval");
+    run_scenario("tests/scenarios/evaluate.toml", &out, &[]);
+    let dest = tmp.path().join("xma");
+    for (_, truth) in truths(&out) {
+        std::fs::create_dir_all(dest.join(&truth.run.id)).unwrap();
+    }
+    (tmp, out, dest)
+}
+
+/// A 2-D point export of XMALab (0-based pixels, y down, of the exported flipped images) for
+/// every bead of `femur` moved by [`OFFSET`], projected by rsasim's own detector frames.
+fn points2d_csv(truth: &Truth) -> String {
+    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+    let mut header = Vec::new();
+    let mut values = Vec::new();
+    for m in &p.markers {
+        for (j, det) in truth.run.detectors.iter().enumerate() {
+            header.push(format!("{0}_cam{1}_X,{0}_cam{1}_Y", m.id, j + 1));
+            let moved = m.position_mm + glam::DVec3::from_array(OFFSET);
+            let uv = det
+                .frame()
+                .project(truth.run.source_of(det), moved)
+                .unwrap();
+            let h = f64::from(det.pixels[1]);
+            values.push(format!("{},{}", num(uv.x - 0.5), num(h - uv.y - 0.5)));
+        }
+    }
+    format!("{}\n{}\n", header.join(","), values.join(","))
+}
+
+#[test]
+fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
+    let (_tmp, out, dest) = simulated_with_results_folder();
+    for (name, make) in [
+        (
+            "xmalab-rigid-bodies.csv",
+            rigid_body_csv as fn(&Truth) -> String,
+        ),
+        ("xmalab-points.csv", points_csv),
+        ("xmalab-points2d.csv", points2d_csv),
+    ] {
+        for (_, truth) in truths(&out) {
+            std::fs::write(dest.join(&truth.run.id).join(name), make(&truth)).unwrap();
+        }
+        let report = evaluate(
+            &out,
+            &Options {
+                measured: MeasuredSource::PerRunIn {
+                    name: name.into(),
+                    dir: dest.clone(),
+                },
+                confidence: Confidence::default(),
+            },
+        )
+        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        assert_eq!(report.runs_scored, 40, "{name}");
+        let femur = table(&report, "phantom-femur");
+        for level in 0..2 {
+            for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+                let t = trueness(femur, level, "position", axis);
+                assert!((t - OFFSET[i]).abs() < 1e-7, "{name} {axis}: {t}");
+            }
+            for angle in ["α", "β", "γ"] {
+                let t = trueness(femur, level, "orientation", angle);
+                assert!(t.abs() < 1e-7, "{name} {angle}: {t}");
+            }
+        }
+    }
+    // The command line: the same file names found under --results-in.
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--measured",
+            "xmalab-points.csv",
+            "--results-in",
+            dest.to_str().unwrap(),
+            "--format",
+            "csv",
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("report-xmalab-points/report.csv").is_file());
+}
+
+/// Runs `evaluate` on one bad XMALab file in the first run folder and returns its stderr.
+fn evaluate_bad(out: &Path, dest: &Path, first_run: &str, text: &str) -> String {
+    std::fs::write(dest.join(first_run).join("bad.csv"), text).unwrap();
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--measured",
+            "bad.csv",
+            "--results-in",
+            dest.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn bad_xmalab_files_are_refused_with_file_line_and_column() {
+    let (_tmp, out, dest) = simulated_with_results_folder();
+    let (_, truth) = truths(&out).remove(0);
+    let id = truth.run.id.clone();
+    let good = rigid_body_csv(&truth);
+    let file = format!("{id}/bad.csv");
+    // A value that is not a number: line 2, at its column.
+    let bad = good.replacen(",0,", ",zero,", 1);
+    let col = bad.lines().nth(1).unwrap().find("zero").unwrap() + 1;
+    let e = evaluate_bad(&out, &dest, &id, &bad);
+    assert!(
+        e.contains(&format!("{file}:2:{col}")) && e.contains("`zero` is not a number"),
+        "{e}"
+    );
+    // A body that is not a phantom: line 1, column 7 (after `Frame,`).
+    let e = evaluate_bad(&out, &dest, &id, &good.replace("femur_", "tibia_"));
+    assert!(
+        e.contains(&format!("{file}:1:7"))
+            && e.contains("rigid body `tibia`")
+            && e.contains("femur"),
+        "{e}"
+    );
+    // Two frames in one run's file.
+    let two = format!("{good}{}\n", good.lines().nth(1).unwrap());
+    let e = evaluate_bad(&out, &dest, &id, &two);
+    assert!(
+        e.contains(&format!("{file}:3:1")) && e.contains("2 frame(s)"),
+        "{e}"
+    );
+    // Neither layout.
+    let e = evaluate_bad(&out, &dest, &id, "a,b,c\n1,2,3\n");
+    assert!(
+        e.contains(&format!("{file}:1:1")) && e.contains("none of XMALab's"),
+        "{e}"
+    );
+    // 2-D points for one camera of two.
+    let e = evaluate_bad(&out, &dest, &id, "K1_cam1_X,K1_cam1_Y\n1,2\n");
+    assert!(
+        e.contains(&format!("{file}:1:11")) && e.contains("not a multiple of 4"),
+        "{e}"
+    );
+    // A marker that is no bead.
+    let e = evaluate_bad(&out, &dest, &id, "Q9_X,Q9_Y,Q9_Z\n1,2,3\n");
+    assert!(
+        e.contains(&format!("{file}:1:1")) && e.contains("`Q9` is not a bead"),
+        "{e}"
+    );
+}
+
+#[test]
+fn export_refuses_existing_folders_the_output_itself_and_unknown_runs() {
+    let (tmp, out, dest) = exported("xmalab");
+    let before = common::hashes(&dest);
+    let args = |d: &Path, extra: &[&str]| {
+        let mut a = vec![
+            "export".to_string(),
+            out.to_str().unwrap().to_string(),
+            "--to".into(),
+            "xmalab".into(),
+            "--dir".into(),
+            d.to_str().unwrap().to_string(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        rsasim(&a, &[])
+    };
+    // An existing folder (the earlier export) is never written into.
+    let o = run(args(&dest, &[]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));
+    assert_eq!(common::hashes(&dest), before);
+    // Inside the output folder.
+    let inside = out.join("xma");
+    let o = run(args(&inside, &[]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("inside the output folder"));
+    assert!(!inside.exists());
+    // An unknown run: nothing written.
+    let fresh = tmp.path().join("fresh");
+    let o = run(args(&fresh, &["--run", "n9-r99"]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no run `n9-r99`"));
+    assert!(!fresh.exists());
+    // One run only.
+    let o = run(args(&fresh, &["--run", "n1-r01"]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let runs: Vec<String> = std::fs::read_dir(&fresh)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "README.md")
+        .collect();
+    assert_eq!(runs, ["n1-r01"]);
+}
+
+#[test]
+fn a_measured_calibration_is_exported_instead_of_the_truth() {
+    let (tmp, out, _) = exported("xmalab");
+    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
+    assert!(
+        o.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let (dir, truth) = truths(&out).remove(0);
+    let name = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .find(|n| n.starts_with("measured-rsasim-"))
+        .unwrap_or_else(|| {
+            panic!(
+                "reconstruct wrote nothing: {}",
+                String::from_utf8_lossy(&o.stderr)
+            )
+        });
+    let name = name.as_str();
+    let dest = tmp.path().join("measured-cal");
+    let o = rsasim(
+        &[
+            "export",
+            out.to_str().unwrap(),
+            "--to",
+            "autoscoper",
+            "--dir",
+            dest.to_str().unwrap(),
+            "--run",
+            &truth.run.id,
+            "--calibration-from",
+            name,
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m: rsasim::output::Measured =
+        serde_json::from_slice(&std::fs::read(dir.join(name)).unwrap()).unwrap();
+    // The camera centre −Rᵀ·t is the measured source, not the true one.
+    let det = &truth.run.detectors[0];
+    let (_, _, r, t) = mayacam(
+        &dest
+            .join(&truth.run.id)
+            .join(format!("calibration/{}_MayaCam.txt", det.id)),
+    );
+    let centre: Vec<f64> = (0..3)
+        .map(|j| -(0..3).map(|i| r[i][j] * t[i]).sum::<f64>())
+        .collect();
+    let measured = m
+        .sources
+        .iter()
+        .find(|s| s.id == det.source)
+        .unwrap()
+        .position_mm;
+    for j in 0..3 {
+        assert!(
+            (centre[j] - measured[j]).abs() < 1e-9,
+            "{centre:?} {measured:?}"
+        );
+    }
+    assert!(
+        (0..3).any(|j| (centre[j] - truth.run.source_of(det)[j]).abs() > 1e-6),
+        "the measured source equals the true one"
+    );
+}
