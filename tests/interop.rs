@@ -321,6 +321,7 @@ fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
                     dir: dest.clone(),
                 },
                 confidence: Confidence::default(),
+                mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             },
         )
         .unwrap_or_else(|e| panic!("{name}: {e:?}"));
