@@ -96,13 +96,7 @@ pub fn render(
     let beam = setup.beam(frame, source_mm, factor);
     let nominal = setup.beam(frame, source_mm, 1.0);
     let detector = setup.detector(&nominal, i_max);
-    let scene = Scene {
-        width: w,
-        height: h,
-        mu_per_mm: &setup.mu_per_mm,
-        layers: &layers,
-        fluence: Fluence::PointSource(&fluence),
-    };
+    let scene = scene_of(setup, frame, &layers, &fluence);
     let rendered = if formation.is_sharp() {
         response::render(&beam, &detector, &scene, key)
     } else {
@@ -211,6 +205,24 @@ pub(super) fn shadows_of(
         .par_iter()
         .map(|part| path_lengths(frame, source_mm, &part.object))
         .collect()
+}
+
+/// What the response needs of one image on `frame`: the materials' attenuation, the path-length
+/// `layers`, and a point source's `fluence` on the frame's pixel centres.
+pub(super) fn scene_of<'a>(
+    setup: &'a Setup,
+    frame: &DetectorFrame,
+    layers: &'a [Layer<'a>],
+    fluence: &'a response::PointSourceFluence,
+) -> Scene<'a> {
+    let [w, h] = frame.pixels.map(|n| n as usize);
+    Scene {
+        width: w,
+        height: h,
+        mu_per_mm: &setup.mu_per_mm,
+        layers,
+        fluence: Fluence::PointSource(fluence),
+    }
 }
 
 /// The layers of the parts' shadows: each part's lengths added to its material and, for a

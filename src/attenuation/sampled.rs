@@ -11,12 +11,12 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::geometry::DetectorFrame;
-use crate::response::{self, Beam, DetectorModel, Expected, Fluence, PointSourceFluence, Scene};
+use crate::response::{self, Beam, DetectorModel, Expected, PointSourceFluence};
 use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips, window};
 use crate::sampling::{Sampling, adaptive};
 use crate::trace::{Object, PathLengths, Projected};
 
-use super::image::{layers_of, shadows_of};
+use super::image::{layers_of, scene_of, shadows_of};
 use super::scene::Part;
 use super::setup::Setup;
 
@@ -47,14 +47,7 @@ pub fn expected(
             let shadows = shadows_of(parts, &st.frame, src);
             let layers = layers_of(parts, &shadows);
             let fluence = PointSourceFluence::new(&st.frame, src);
-            let [fw, fh] = st.frame.pixels.map(|n| n as usize);
-            let scene = Scene {
-                width: fw,
-                height: fh,
-                mu_per_mm: &setup.mu_per_mm,
-                layers: &layers,
-                fluence: Fluence::PointSource(&fluence),
-            };
+            let scene = scene_of(setup, &st.frame, &layers, &fluence);
             let fine = response::expected(beam, detector, &scene);
             let rows = st.first_row as usize * w..(st.first_row + st.rows) as usize * w;
             let k = weight * per_sample;
@@ -89,14 +82,7 @@ pub fn expected_adaptive_of(
     let shadows = shadows_of(parts, frame, source_mm);
     let layers = layers_of(parts, &shadows);
     let fluence = PointSourceFluence::new(frame, source_mm);
-    let [w, h] = frame.pixels.map(|n| n as usize);
-    let scene = Scene {
-        width: w,
-        height: h,
-        mu_per_mm: &setup.mu_per_mm,
-        layers: &layers,
-        fluence: Fluence::PointSource(&fluence),
-    };
+    let scene = scene_of(setup, frame, &layers, &fluence);
     let sharp = response::expected(beam, detector, &scene);
     expected_adaptive(
         setup, parts, &shadows, frame, source_mm, beam, detector, sampling, sharp,
@@ -237,14 +223,9 @@ fn add_tile(
         })
         .collect();
     let layers = layers_of(parts, &shadows);
-    let fluence = PointSourceFluence::new(&window(frame, i0, j0, tw, th, s), seen.source_mm);
-    let scene = Scene {
-        width: (tw * s) as usize,
-        height: (th * s) as usize,
-        mu_per_mm: &setup.mu_per_mm,
-        layers: &layers,
-        fluence: Fluence::PointSource(&fluence),
-    };
+    let tile_frame = window(frame, i0, j0, tw, th, s);
+    let fluence = PointSourceFluence::new(&tile_frame, seen.source_mm);
+    let scene = scene_of(setup, &tile_frame, &layers, &fluence);
     let fine = response::expected(beam, detector, &scene);
     let k = seen.weight / f64::from(s * s);
     let (s, tw) = (s as usize, tw as usize);
