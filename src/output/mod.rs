@@ -10,6 +10,7 @@ pub mod html_text;
 pub mod manifest;
 pub mod measured;
 pub mod preview;
+pub mod study;
 pub mod tiff;
 pub mod truth;
 pub mod verify;
