@@ -73,7 +73,10 @@ fn main() {
                 source,
                 &beam,
                 &detector,
-                &Sampling::from_imaging(&rsasim::scenario::Imaging::default()),
+                &Sampling {
+                    heel: sampling.heel.clone(),
+                    ..Sampling::from_imaging(&rsasim::scenario::Imaging::default())
+                },
             );
             let mut dq: Vec<f64> = Vec::with_capacity(full.quanta.len());
             let (mut de_max, mut sum, mut kept) = (0.0f64, 0.0, 0usize);
