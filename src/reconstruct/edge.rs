@@ -27,6 +27,7 @@ use glam::DVec2;
 
 use super::contour::Outline;
 use super::density::Density;
+use super::model_outline::OutlineSegment;
 use super::shadow::dense_shadow;
 use crate::scenario::{Imaging, SpotProfile};
 
@@ -121,7 +122,7 @@ pub fn graded_outline(
                     (x >= 0 && (x as usize) < w)
                         .then(|| (img.transmission(x as usize, j), mask[j * w + x as usize]))
                 };
-                if let Some(u) = crossing(profile, here, level, windows) {
+                if let Some(u) = crossing(profile, here, Some(level), windows) {
                     edge_points.push(DVec2::new(i as f64 + 0.5 + u, j as f64 + 0.5));
                 }
             }
@@ -131,7 +132,7 @@ pub fn graded_outline(
                     (y >= 0 && (y as usize) < h)
                         .then(|| (img.transmission(i, y as usize), mask[y as usize * w + i]))
                 };
-                if let Some(v) = crossing(profile, here, level, windows) {
+                if let Some(v) = crossing(profile, here, Some(level), windows) {
                     edge_points.push(DVec2::new(i as f64 + 0.5, j as f64 + 0.5 + v));
                 }
             }
@@ -177,7 +178,7 @@ fn sobel(img: &Density, i: usize, j: usize) -> DVec2 {
 /// crosses the local half-way level, for a pair (0, 1) of which pixel 0 is inside iff
 /// `first_inside`. `profile(k)` is pixel k's transmission and whether it is in the shadow, or
 /// `None` off the image. `level` is the segmentation's attenuation level: the local plateau must
-/// lie above it and the local background below it.
+/// lie above it and the local background below it (with `None`, only the step is checked).
 ///
 /// The levels are read `windows.near_px..=windows.far_px` from the current edge estimate (first
 /// the pair's boundary, then the crossing found), so a shadow mask that sits a few pixels inside
@@ -185,13 +186,13 @@ fn sobel(img: &Density, i: usize, j: usize) -> DVec2 {
 fn crossing(
     profile: impl Fn(i64) -> Option<(f64, bool)>,
     first_inside: bool,
-    level: f64,
+    level: Option<f64>,
     windows: EdgeWindows,
 ) -> Option<f64> {
     let outward = if first_inside { 1.0 } else { -1.0 };
     let reach = (windows.search_px + windows.far_px + 1) as i64;
     let (near, far) = (windows.near_px as f64, windows.far_px as f64);
-    let t_level = libm::exp(-level);
+    let t_level = level.map(|l| libm::exp(-l));
     let median = |mut v: Vec<f64>| -> Option<f64> {
         if v.len() < 2 {
             return None;
@@ -202,20 +203,28 @@ fn crossing(
     let mut centre = 0.5;
     let mut found = None;
     for _ in 0..2 {
-        let (mut inside, mut outside) = (Vec::new(), Vec::new());
+        // (distance from the current estimate, transmission) of the level samples on each side.
+        let (mut inside, mut outside, mut between) = (Vec::new(), Vec::new(), Vec::new());
         for k in -reach..=reach {
             let Some((t, in_shadow)) = profile(k) else {
                 continue;
             };
             let d = (k as f64 - centre) * outward;
             if in_shadow && (near..=far).contains(&-d) {
-                inside.push(t);
+                inside.push((-d, t));
             } else if !in_shadow && (near..=far).contains(&d) {
-                outside.push(t);
+                outside.push((d, t));
+            } else if d.abs() < near {
+                between.push(t);
             }
         }
-        let (t_in, t_out) = (median(inside)?, median(outside)?);
-        if !(t_in <= t_level && t_level <= t_out && t_in <= MAX_INSIDE_FRACTION * t_out) {
+        let levels = |side: &[(f64, f64)]| median(side.iter().map(|&(_, t)| t).collect());
+        let (t_in, t_out) = (levels(&inside)?, levels(&outside)?);
+        if level.is_none() && !clean(&inside, &outside, &between, 0.5 * (near + far), t_in, t_out) {
+            return None;
+        }
+        let straddles = t_level.is_none_or(|t| t_in <= t && t <= t_out);
+        if !(straddles && t_in <= MAX_INSIDE_FRACTION * t_out) {
             return None;
         }
         let half = 0.5 * (t_in + t_out);
@@ -242,6 +251,125 @@ fn crossing(
     }
     found
 }
+
+/// Whether an edge profile is a clean step between the local levels `t_in` and `t_out`: each
+/// side's level samples `(distance, transmission)` are flat ([`flat`]) and the samples
+/// `between` the two level windows stay within the levels, give or take [`MAX_LEVEL_DRIFT`] of
+/// the step. Where another structure (bone beside the implant, a bead, a gap of tissue between
+/// implant and bone) lies within the windows, the levels read there are not the edge's own and
+/// the half-way crossing would be pulled off the edge: such a profile gives no point.
+fn clean(
+    inside: &[(f64, f64)],
+    outside: &[(f64, f64)],
+    between: &[f64],
+    mid: f64,
+    t_in: f64,
+    t_out: f64,
+) -> bool {
+    let step = t_out - t_in;
+    let slack = MAX_LEVEL_DRIFT * step.abs();
+    let (lo, hi) = (t_in.min(t_out) - slack, t_in.max(t_out) + slack);
+    flat(inside, mid, step)
+        && flat(outside, mid, step)
+        && between.iter().all(|t| (lo..=hi).contains(t))
+}
+
+/// Whether the level samples `(distance, transmission)` of one side of an edge are flat: the
+/// mean of those nearer than `mid` differs from the mean of the others by at most
+/// [`MAX_LEVEL_DRIFT`] of the edge's `step`. A side with samples on only one side of `mid`
+/// counts as flat.
+fn flat(side: &[(f64, f64)], mid: f64, step: f64) -> bool {
+    let mean = |near: bool| {
+        let (sum, n) = side
+            .iter()
+            .filter(|&&(d, _)| (d < mid) == near)
+            .fold((0.0, 0usize), |(s, n), &(_, t)| (s + t, n + 1));
+        (n > 0).then(|| sum / n as f64)
+    };
+    match (mean(true), mean(false)) {
+        (Some(a), Some(b)) => (a - b).abs() <= MAX_LEVEL_DRIFT * step,
+        _ => true,
+    }
+}
+
+/// How far the two halves of a side's level window may differ, and the samples between the
+/// windows may stray beyond the levels, as a fraction of the edge's step in transmission (see
+/// [`clean`]): a Gaussian edge blurred as the windows expect is within 2 % of its levels there,
+/// and quantum noise at the lowest exposures moves a sample by a few per cent of a metal edge's
+/// step.
+pub const MAX_LEVEL_DRIFT: f64 = 0.15;
+
+/// Edge points measured along the normals of a predicted outline (`segments`, the model's
+/// projected outline at a pose close to the truth): every [`ALONG_OUTLINE_SPACING_PX`] of outline
+/// length, the transmission is read along the segment's normal through that point (bilinear
+/// between pixel centres, one sample per pixel of distance) and the edge found there as for a
+/// pixel pair ([`crossing`]: half-way between the local plateau and background, read
+/// `windows.near_px..=windows.far_px` from the edge, twice), the denser side being the implant's.
+/// Unlike the points of [`graded_outline`], these do not depend on the segmentation: where the
+/// implant's thin rim reads less dense than bone beside it (a lateral view under scatter), the
+/// shadow found may leave the rim out, but its edge is still a step along the outline's normal.
+pub fn edge_points_along_outline(
+    img: &Density,
+    segments: &[OutlineSegment],
+    windows: EdgeWindows,
+) -> Vec<DVec2> {
+    let (w, h) = (img.width, img.height);
+    let sample = |p: DVec2| -> Option<f64> {
+        // Bilinear in transmission between the four pixel centres around p.
+        let (x, y) = (p.x - 0.5, p.y - 0.5);
+        if !(x >= 0.0 && y >= 0.0 && x < (w - 1) as f64 && y < (h - 1) as f64) {
+            return None;
+        }
+        let (i, j) = (x.floor() as usize, y.floor() as usize);
+        let (fx, fy) = (x - i as f64, y - j as f64);
+        let t = |di: usize, dj: usize| img.transmission(i + di, j + dj);
+        Some(
+            (1.0 - fy) * ((1.0 - fx) * t(0, 0) + fx * t(1, 0))
+                + fy * ((1.0 - fx) * t(0, 1) + fx * t(1, 1)),
+        )
+    };
+    let reach = (windows.search_px + windows.far_px + 2) as i64;
+    let mut points = Vec::new();
+    let mut carried = 0.0;
+    for s in segments {
+        let d = s.uv[1] - s.uv[0];
+        let length = d.length();
+        if !(length > 0.0) {
+            continue;
+        }
+        let normal = DVec2::new(-d.y, d.x) / length;
+        let mut at = ALONG_OUTLINE_SPACING_PX - carried;
+        while at <= length {
+            let q = s.uv[0] + d * (at / length);
+            at += ALONG_OUTLINE_SPACING_PX;
+            // Samples k = −reach..=reach at q + (k − ½)·n: the pair (0, 1) straddles q.
+            let t: Vec<Option<f64>> = (-reach..=reach)
+                .map(|k| sample(q + normal * (k as f64 - 0.5)))
+                .collect();
+            let at_k = |k: i64| t.get((k + reach) as usize).copied().flatten();
+            let side_mean = |sign: i64| {
+                let v: Vec<f64> = (windows.near_px as i64..=windows.far_px as i64)
+                    .filter_map(|m| at_k(if sign < 0 { 1 - m } else { m }))
+                    .collect();
+                (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+            };
+            let (Some(before), Some(after)) = (side_mean(-1), side_mean(1)) else {
+                continue;
+            };
+            // The implant lies on the side that transmits less.
+            let first_inside = before < after;
+            let profile = |k: i64| at_k(k).map(|v| (v, (k <= 0) == first_inside));
+            if let Some(u) = crossing(profile, first_inside, None, windows) {
+                points.push(q + normal * (u - 0.5));
+            }
+        }
+        carried = length - (at - ALONG_OUTLINE_SPACING_PX);
+    }
+    points
+}
+
+/// The spacing of the points [`edge_points_along_outline`] measures, pixels of outline length.
+pub const ALONG_OUTLINE_SPACING_PX: f64 = 1.0;
 
 #[cfg(test)]
 mod tests {
@@ -434,5 +562,81 @@ mod tests {
         );
         let r = mean_radius(&o, c);
         assert!((r - 20.0).abs() < 0.1, "{r}");
+    }
+
+    /// A circle of `n` segments (continuous pixel coordinates), as a projected outline.
+    fn circle_segments(c: DVec2, r: f64, n: usize) -> Vec<OutlineSegment> {
+        let at = |k: usize| {
+            let a = std::f64::consts::TAU * k as f64 / n as f64;
+            c + DVec2::new(a.cos(), a.sin()) * r
+        };
+        (0..n)
+            .map(|k| OutlineSegment {
+                uv: [at(k), at(k + 1)],
+                world_mm: [glam::DVec3::ZERO; 2],
+            })
+            .collect()
+    }
+
+    #[test]
+    fn points_along_a_predicted_outline_find_the_blurred_edge_under_a_veil() {
+        // A disc of radius 20 px blurred by σ = 2 px under a veil, and an outline predicted
+        // 1.5 px off-centre and 0.8 px too large: every point lies on the true edge.
+        let c = DVec2::new(60.3, 59.6);
+        let img = with_veil(&disc(120, 120, c, 20.0, 2.0), 0.05);
+        let windows = EdgeWindows::for_blur(2.0);
+        let predicted = circle_segments(c + DVec2::new(1.5, 0.0), 20.8, 720);
+        let points = edge_points_along_outline(&img, &predicted, windows);
+        // About one point per pixel of outline length (2π·20.8 ≈ 131).
+        assert!(points.len() > 120 && points.len() < 140, "{}", points.len());
+        // The half-level contour of a blurred disc lies σ²/(2R) = 0.1 px inside its edge
+        // (as for the pixel-pair points above).
+        let radii: Vec<f64> = points.iter().map(|p| (*p - c).length()).collect();
+        let r = radii.iter().sum::<f64>() / radii.len() as f64;
+        let sd = (radii.iter().map(|x| (x - r).powi(2)).sum::<f64>() / radii.len() as f64).sqrt();
+        let expected = 20.0 - 2.0 * 2.0 / (2.0 * 20.0);
+        assert!(
+            (r - expected).abs() < 0.03 && sd < 0.05,
+            "{r} vs {expected}, SD {sd}"
+        );
+    }
+
+    #[test]
+    fn bone_beside_the_implant_gives_no_points_along_the_outline() {
+        // The disc touched by a bar of bone (attenuation 3, 6 px wide) ending 2 px from its rim:
+        // the profiles whose background window holds the bone's edge give no point, and every
+        // point given lies on the disc's edge.
+        let c = DVec2::new(60.3, 59.6);
+        let mut img = disc(120, 120, c, 20.0, 0.0);
+        for j in 0..120 {
+            for i in 0..120 {
+                let p = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+                if (p.x - c.x).abs() < 3.0 && p.y > c.y + 22.0 {
+                    img.values[j * 120 + i] = 3.0;
+                }
+            }
+        }
+        let points = edge_points_along_outline(
+            &img.blurred(1.0),
+            &circle_segments(c, 20.0, 720),
+            EdgeWindows::SHARP,
+        );
+        // Without the checks, the profiles through the gap would put their points 0.9 px inside
+        // (half-way between metal and bone is crossed on the metal's edge to tissue). Only
+        // profiles grazing the bar's corners may still give a point a little off.
+        // The blur (σ = 1 px) puts the half-level contour σ²/(2R) = 0.025 px inside the edge.
+        let errors: Vec<f64> = points
+            .iter()
+            .map(|p| (*p - c).length() - (20.0 - 0.025))
+            .collect();
+        let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+        assert!(mean.abs() < 0.015, "{mean}");
+        let off = errors.iter().filter(|e| e.abs() >= 0.08).count();
+        assert!(off <= 3 && points.len() > 100, "{off} of {}", points.len());
+        let below = points
+            .iter()
+            .filter(|p| (p.x - c.x).abs() < 2.0 && p.y > c.y)
+            .count();
+        assert_eq!(below, 0);
     }
 }

@@ -9,16 +9,16 @@ use glam::{DMat3, DVec2, DVec3};
 
 use super::beads::{find_beads, implant_metal_mask, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
-use super::contour::outline;
+use super::contour::{Outline, outline};
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::density::{Reading, density};
 use super::detect::{Blob, blobs};
-use super::edge::{EdgeWindows, graded_outline};
+use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
 use super::selvik::calibrate_selvik;
-use super::silhouette::{GOOD_FIT_PX, SilhouetteView, fit_silhouette};
+use super::silhouette::{GOOD_FIT_PX, SilhouetteView, fit_silhouette, refine};
 use super::{Method, ModelMethod};
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
@@ -739,6 +739,32 @@ fn model_pose(pose: &Pose, quality: FitQuality) -> MeasuredPose {
     }
 }
 
+/// Rounds of edge points measured along the fitted outline's normals, each followed by a fit.
+const ALONG_OUTLINE_ROUNDS: usize = 2;
+
+/// Attenuation mode: the edge windows for a model near `nominal` in the view of `c` and `det`
+/// (the focal spot's penumbra at the model's nominal depth: object-to-detector over
+/// source-to-object distance). `None` in binary mode.
+fn attenuation_windows(
+    setup: &Setup,
+    c: &Calibrated,
+    det: &DetectorState,
+    nominal: Pose,
+) -> Option<EdgeWindows> {
+    let imaging = &setup.scenario.imaging;
+    if !imaging.is_attenuation() {
+        return None;
+    }
+    let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
+    let source_z = frame.pose.to_local(c.beamline.source_mm).z;
+    let model_z = frame.pose.to_local(nominal.position_mm).z;
+    Some(EdgeWindows::for_imaging(
+        imaging,
+        det.pixel_pitch_mm[0].min(det.pixel_pitch_mm[1]),
+        model_z / (source_z - model_z),
+    ))
+}
+
 /// Model-based RSA of one model: its shadow's outline in every calibrated view, fitted from the
 /// nominal pose (see [`super::silhouette`]).
 fn find_model_by_outline(
@@ -750,32 +776,22 @@ fn find_model_by_outline(
     nominal: Pose,
 ) -> Result<MeasuredPose, String> {
     let mut outlines = Vec::new();
+    let mut graded_images = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
         let imaging = &setup.scenario.imaging;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
-        let found = if imaging.is_attenuation() {
-            // The focal spot's penumbra at the model's nominal depth: object-to-detector over
-            // source-to-object distance.
-            let source_z = frame.pose.to_local(c.beamline.source_mm).z;
-            let model_z = frame.pose.to_local(nominal.position_mm).z;
-            let windows = EdgeWindows::for_imaging(
-                imaging,
-                det.pixel_pitch_mm[0].min(det.pixel_pitch_mm[1]),
-                model_z / (source_z - model_z),
-            );
+        let found = if let Some(windows) = attenuation_windows(setup, c, det, nominal) {
             let expected_area_px = implant_in(setup, exposure, &frame, c.beamline.source_mm)
                 .and_then(|i| i.expected_area_px);
-            graded_outline(
-                &density(&px, w as usize, Reading::of(imaging, det.i_max())),
-                windows,
-                expected_area_px,
-            )
+            let img = density(&px, w as usize, Reading::of(imaging, det.i_max()));
+            graded_outline(&img, windows, expected_area_px).map(|o| (o, Some((img, windows))))
         } else {
-            outline(&px, w as usize, det.i_max())
+            outline(&px, w as usize, det.i_max()).map(|o| (o, None))
         };
-        if let Some(o) = found {
+        if let Some((o, graded)) = found {
             outlines.push((frame, c.beamline.source_mm, o));
+            graded_images.push(graded);
         }
     }
     let views: Vec<SilhouetteView> = outlines
@@ -786,7 +802,35 @@ fn find_model_by_outline(
             outline,
         })
         .collect();
-    let fit = fit_silhouette(model, &views, nominal)?;
+    let mut fit = fit_silhouette(model, &views, nominal)?;
+    // Graded images: the edge measured again along the fitted outline's normals, twice
+    // (`edge::edge_points_along_outline`), independent of the segmentation.
+    if graded_images.iter().all(Option::is_some) {
+        for _ in 0..ALONG_OUTLINE_ROUNDS {
+            let along: Vec<Outline> = outlines
+                .iter()
+                .zip(&graded_images)
+                .filter_map(|((frame, source_mm, o), g)| {
+                    let (img, windows) = g.as_ref()?;
+                    let segments = model.outline(&fit.pose, *source_mm, frame);
+                    Some(Outline {
+                        edge_points: edge_points_along_outline(img, &segments, *windows),
+                        ..o.clone()
+                    })
+                })
+                .collect();
+            let views: Vec<SilhouetteView> = outlines
+                .iter()
+                .zip(&along)
+                .map(|((frame, source_mm, _), outline)| SilhouetteView {
+                    frame: *frame,
+                    source_mm: *source_mm,
+                    outline,
+                })
+                .collect();
+            fit = refine(model, &views, fit.pose)?;
+        }
+    }
     let mut flags = Vec::new();
     if fit.mean_distance_px > GOOD_FIT_PX {
         flags.push(format!("contour distance > {GOOD_FIT_PX} px"));

@@ -409,8 +409,8 @@ impl<'s> SegmentGrid<'s> {
     }
 }
 
-/// Stage 2: iterative closest points with Gauss–Newton steps (module docs).
-fn refine(
+/// Stage 2: iterative closest points with Gauss–Newton steps (module docs), from `pose`.
+pub fn refine(
     model: &OutlineModel,
     views: &[SilhouetteView],
     mut pose: Pose,
