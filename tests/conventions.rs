@@ -247,5 +247,8 @@ fn shards_are_dealt_round_robin_as_documented() {
             assert_eq!(runs_of_shard(r, spec), by_rule);
         }
     }
-    assert_eq!(ShardSpec::new(3, 12).unwrap().folder_name(), "shard-03-of-12");
+    assert_eq!(
+        ShardSpec::new(3, 12).unwrap().folder_name(),
+        "shard-03-of-12"
+    );
 }
