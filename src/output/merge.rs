@@ -294,8 +294,14 @@ pub fn check(dirs: &[PathBuf]) -> Result<Shards, Vec<Diagnostic>> {
             .iter()
             .map(|k| format!("{k}/{count}"))
             .collect::<Vec<_>>();
+        // Named after the folder that holds the shards (OUT of `--shard`), when there is one.
+        let holder = first
+            .dir
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(&first.dir);
         errors.push(error(
-            &first.dir,
+            holder,
             format!(
                 "{} of {count} shard(s) missing ({}): run(s) {} are in no folder given",
                 missing.len(),
@@ -372,14 +378,12 @@ pub fn check(dirs: &[PathBuf]) -> Result<Shards, Vec<Diagnostic>> {
 /// Claims `out` for the merged folder (step 2): refused when it is, holds or lies inside a shard
 /// folder, and otherwise by the rules of a run's output (`force`).
 pub fn claim(shards: &Shards, out: &Path, force: bool) -> Result<OutputTarget, Vec<Diagnostic>> {
-    let absolute = |p: &Path| {
-        p.canonicalize()
-            .or_else(|_| std::path::absolute(p))
-            .unwrap_or_else(|_| p.to_path_buf())
-    };
-    let out_abs = absolute(out);
+    let out_abs = super::commit::guard::resolve(out)
+        .map(|r| r.path)
+        .map_err(|d| vec![*d])?;
     for dir in &shards.dirs {
-        if out_abs.starts_with(absolute(dir)) {
+        let dir_abs = dir.canonicalize().unwrap_or_else(|_| dir.clone());
+        if out_abs.starts_with(dir_abs) {
             return Err(vec![error(
                 out,
                 format!(
