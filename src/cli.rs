@@ -2,9 +2,10 @@
 
 use std::path::PathBuf;
 
-use clap::builder::{PossibleValuesParser, TypedValueParser};
+use clap::builder::{PossibleValuesParser, RangedU64ValueParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use rsasim::reconstruct::{Method, ModelMethod};
+use rsasim::shard::ShardRequest;
 
 /// rsasim: simulate Radio Stereometric Analysis X-ray scenes with known ground truth.
 ///
@@ -34,7 +35,9 @@ pub struct RunArgs {
     pub scenario: Option<PathBuf>,
     /// Output folder. Default: out/<scenario name>. It is written in a private staging folder
     /// beside it and swapped in only once complete; a lock file `.<name>.rsasim-lock` beside it
-    /// keeps a second rsasim process out. A file or a symbolic link there is refused.
+    /// keeps a second rsasim process out. A file or a symbolic link there is refused. With
+    /// --shard, the folder that collects the shards (default out/<scenario name>-shards): the
+    /// shard is written into DIR/shard-K-of-N/.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Replace the output folder if it is an earlier rsasim output (its manifest.json says so) or
@@ -53,6 +56,19 @@ pub struct RunArgs {
     /// each image, listed in the manifest. Previews are never evidence: score the TIFF/EXR.
     #[arg(long, value_name = "FORMAT", value_parser = ["png"])]
     pub preview: Option<String>,
+    /// Write only shard K of N (K from 0 to N − 1, as Kubernetes' JOB_COMPLETION_INDEX and
+    /// `sbatch --array=0-3` count) into OUT/shard-K-of-N/ with its own manifest: the runs at
+    /// positions K, K + N, K + 2N, … of the protocol, byte for byte as a run without --shard
+    /// writes them. `auto`: K and N from SLURM_ARRAY_TASK_ID with SLURM_ARRAY_TASK_MIN and
+    /// SLURM_ARRAY_TASK_COUNT (or _MAX), or from JOB_COMPLETION_INDEX with --shard-count. A
+    /// folder already holding this complete shard (same scenario, build and shard; every file
+    /// verified) is left as it is. Join the shards with `rsasim merge`.
+    #[arg(long, value_name = "K/N|auto", value_parser = ShardRequest::parse, conflicts_with = "truth_dir")]
+    pub shard: Option<ShardRequest>,
+    /// The number of shards N for `--shard auto` in a Kubernetes Indexed Job (its
+    /// .spec.completions, which Kubernetes does not export); with SLURM or K/N it must agree.
+    #[arg(long, value_name = "N", requires = "shard", value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+    pub shard_count: Option<usize>,
     /// What the scenario may read and use beyond the defaults.
     #[command(flatten)]
     pub allow: AllowArgs,
@@ -239,6 +255,28 @@ pub enum Command {
         /// the true calibration.
         #[arg(long, value_name = "FILE_NAME")]
         calibration_from: Option<String>,
+    },
+    /// Join the shard folders of one scenario (written by `rsasim SCENARIO --shard K/N`) into
+    /// one output folder, byte for byte the folder a run without --shard writes. Every shard is
+    /// checked first: its manifest's own hash, the same scenario, seed, build and number of
+    /// shards, no shard missing or given twice, no file added or changed (every file's SHA-256
+    /// is checked as it is placed); any problem is an error (exit 2) and nothing is written.
+    Merge {
+        /// Every shard folder (all N, any order), e.g. out/knee-shards/shard-*.
+        #[arg(required = true, value_name = "SHARD_DIR")]
+        shards: Vec<PathBuf>,
+        /// The merged output folder. Written like a run's output: staged beside it, swapped in
+        /// when complete, under the same lock.
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Replace OUT if it is an earlier rsasim output (the rules of a run's --force).
+        #[arg(long)]
+        force: bool,
+        /// Copy the files. Default: hard-link them (no time, no space; the shard and the merged
+        /// folder then share each file's bytes, which rsasim never changes in place), copying
+        /// only where a link is impossible (another file system).
+        #[arg(long)]
+        copy: bool,
     },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {

@@ -16,6 +16,7 @@ pub mod response;
 pub mod sampling;
 pub mod scenario;
 pub mod scene_view;
+pub mod shard;
 pub mod simulate;
 pub mod spectrum;
 pub mod trace;

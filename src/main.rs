@@ -91,18 +91,13 @@ fn main() -> ExitCode {
             report,
         ),
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
-        None => {
-            let scenario = cli.run.scenario.expect("clap requires a scenario");
-            prepare(&scenario, &cli.run.allow.into()).and_then(|mut plan| {
-                plan.previews = cli.run.preview.is_some();
-                run(
-                    &plan,
-                    cli.run.out,
-                    cli.run.truth_dir.as_deref(),
-                    cli.run.force,
-                )
-            })
-        }
+        Some(Command::Merge {
+            shards,
+            out,
+            force,
+            copy,
+        }) => merge(&shards, &out, force, copy),
+        None => run_scenario(cli.run),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -199,6 +194,55 @@ fn report_errors(errors: &[Diagnostic]) -> u8 {
     2
 }
 
+/// The default command: the shard (if any) decided first, then the scenario checked and run.
+fn run_scenario(args: cli::RunArgs) -> Result<(), u8> {
+    let scenario = args.scenario.expect("clap requires a scenario");
+    let shard = args
+        .shard
+        .map(|request| {
+            let vars: std::collections::HashMap<String, String> = std::env::vars().collect();
+            rsasim::shard::env::resolve(request, args.shard_count, &vars).map_err(|e| {
+                eprintln!(
+                    "error: {}\n  = help: {}\n\nrsasim: 1 error(s); nothing was written",
+                    e.message, e.help
+                );
+                2
+            })
+        })
+        .transpose()?;
+    let mut plan = prepare(&scenario, &args.allow.into())?;
+    plan.previews = args.preview.is_some();
+    let out = match shard {
+        None => args.out,
+        Some((spec, from)) => {
+            plan.shard = Some(spec);
+            let base = args.out.unwrap_or_else(|| {
+                std::path::Path::new("out").join(format!("{}-shards", plan.loaded.scenario.name))
+            });
+            let out = base.join(spec.folder_name());
+            let held = plan.written_runs().len();
+            eprintln!(
+                "rsasim: shard {spec} ({from}): {held} of {} run(s){}",
+                plan.runs.len(),
+                if held == 0 {
+                    "; this shard holds no run (more shards than runs): its folder gets the shared files and a manifest only"
+                } else {
+                    ""
+                }
+            );
+            if simulate::finished_shard(&plan, &out) {
+                eprintln!(
+                    "rsasim: {} already holds this shard, complete and verified (same scenario, build and shard): nothing to do",
+                    out.display()
+                );
+                return Ok(());
+            }
+            Some(out)
+        }
+    };
+    run(&plan, out, args.truth_dir.as_deref(), args.force)
+}
+
 fn run(
     plan: &Plan,
     out: Option<std::path::PathBuf>,
@@ -292,6 +336,46 @@ fn reconstruct(out: &std::path::Path, options: &rsasim::reconstruct::Options) ->
     } else {
         Err(1)
     }
+}
+
+/// `rsasim merge`: shards checked (exit 2, nothing written), the merged folder claimed, then
+/// assembled.
+fn merge(
+    shards: &[std::path::PathBuf],
+    out: &std::path::Path,
+    force: bool,
+    copy: bool,
+) -> Result<(), u8> {
+    use rsasim::output::merge::{self, Error};
+    let start = Instant::now();
+    let checked = merge::check(shards).map_err(|e| report_errors(&e))?;
+    for path in &checked.not_merged {
+        eprintln!("rsasim: not merged (no manifest lists it): {path}");
+    }
+    let target = merge::claim(&checked, out, force).map_err(|e| report_errors(&e))?;
+    target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    let (count, runs) = (checked.count(), checked.runs());
+    let summary = merge::assemble(checked, target, copy).map_err(|e| match e {
+        Error::Input(errors) => report_errors(&errors),
+        Error::Write(why) => {
+            eprintln!(
+                "error: writing {} failed: {why}\n  = note: nothing was replaced; a previous output there is unchanged",
+                out.display()
+            );
+            1
+        }
+    })?;
+    summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    eprintln!(
+        "rsasim merge: {count} shard(s), {runs} run(s), {} file(s) ({} hard-linked, {} copied), {:.1} MB verified in {:.1} s -> {}",
+        summary.linked + summary.copied,
+        summary.linked,
+        summary.copied,
+        summary.bytes as f64 / 1e6,
+        start.elapsed().as_secs_f64(),
+        summary.out_dir.display()
+    );
+    Ok(())
 }
 
 fn verify(out: &std::path::Path, images: Option<&std::path::Path>) -> Result<(), u8> {

@@ -22,12 +22,13 @@ use crate::output::exr::{ExrAttr, encode_exr_channels, encode_exr_with};
 use crate::output::tiff::{TiffFacts, encode_tiff};
 use crate::output::{
     self, FileRef, ImageTruth, ImagesBinding, Layout, Manifest, ManifestFile, ProjectedMarker,
-    Truth,
+    ShardRecord, Truth,
 };
 use crate::phantom::{self, PhantomModel};
 use crate::sampling::Sampling;
 use crate::scenario::hex;
 use crate::scenario::{self, ImageFile, ImageFormat, LoadedScenario, Scenario};
+use crate::shard::ShardSpec;
 use crate::trace::{self, MeshBvh, Object};
 use glam::DVec3;
 use sha2::{Digest, Sha256};
@@ -59,6 +60,8 @@ pub struct Plan {
     pub previews: bool,
     /// Every run of the protocol.
     pub runs: Vec<Run>,
+    /// Write only the runs of this shard (`--shard K/N`; [`crate::shard`]); `None`: every run.
+    pub shard: Option<ShardSpec>,
     /// Warnings from every stage (errors stop preparation).
     pub warnings: Vec<Diagnostic>,
     /// What the simulation will write and use.
@@ -72,7 +75,29 @@ impl Plan {
     /// Number of images (per format) the plan writes.
     pub fn image_count(&self) -> usize {
         let s = &self.loaded.scenario;
-        self.runs.len() * s.exposures.len() * s.detectors.len()
+        self.written_runs().len() * s.exposures.len() * s.detectors.len()
+    }
+
+    /// The runs the plan writes: every run, or those of its shard.
+    pub fn written_runs(&self) -> Vec<&Run> {
+        match self.shard {
+            None => self.runs.iter().collect(),
+            Some(spec) => spec
+                .runs(self.runs.len())
+                .into_iter()
+                .map(|p| &self.runs[p])
+                .collect(),
+        }
+    }
+
+    /// The manifest record of the plan's shard.
+    fn shard_record(&self) -> Option<ShardRecord> {
+        self.shard.map(|spec| ShardRecord {
+            index: spec.index,
+            count: spec.count,
+            runs: self.written_runs().iter().map(|r| r.id.clone()).collect(),
+            protocol_runs: self.runs.iter().map(|r| r.id.clone()).collect(),
+        })
     }
 }
 
@@ -167,6 +192,7 @@ impl From<Checked> for Plan {
             setup: c.setup,
             previews: false,
             runs,
+            shard: None,
             warnings: c.warnings,
             cost: c.cost,
         }
@@ -230,8 +256,8 @@ pub fn simulate(
     let mut files = write_phantoms(plan, root, truth_root.is_some())?;
     let layout = truth_root.map(|_| Layout::Images);
     files.push(write_readme(plan, root, layout)?);
-    let per_run: Vec<RunFiles> = plan
-        .runs
+    let runs = plan.written_runs();
+    let per_run: Vec<RunFiles> = runs
         .par_iter()
         .map(|run| write_run(plan, &bvhs, &sampling, run, root, truth_root, progress))
         .collect::<std::io::Result<_>>()?;
@@ -277,7 +303,7 @@ pub fn simulate(
     Ok(Summary {
         out_dir: committed.path,
         image_files,
-        runs: plan.runs.len(),
+        runs: runs.len(),
         notes,
     })
 }
@@ -302,10 +328,32 @@ fn new_manifest(plan: &Plan, files: Vec<ManifestFile>) -> Manifest {
         scenario: s.name.clone(),
         scenario_sha256: Some(plan.loaded.sha256.clone()),
         seed: Some(s.seed),
-        runs: plan.runs.len(),
+        runs: plan.written_runs().len(),
         images: None,
+        shard: plan.shard_record(),
         files,
     }
+}
+
+/// Whether `out` already holds the complete shard `plan` would write (`--shard`): its manifest
+/// is the one this build would write for the same scenario, seed and shard, and every file it
+/// lists verifies (size and SHA-256). A replaced pod or a requeued array task then finds its
+/// work done and writes nothing.
+pub fn finished_shard(plan: &Plan, out: &Path) -> bool {
+    if plan.shard.is_none() || !out.join("manifest.json").is_file() {
+        return false;
+    }
+    let v = output::verify::verify_folder(out);
+    let ok = v.ok();
+    let Some(existing) = v.manifest.filter(|_| ok) else {
+        return false;
+    };
+    let previews = existing.files.iter().any(|f| f.path.ends_with(".png"));
+    let expected = Manifest {
+        manifest_sha256: existing.manifest_sha256.clone(),
+        ..new_manifest(plan, existing.files.clone())
+    };
+    existing == expected && previews == plan.previews
 }
 
 fn sorted(mut files: Vec<ManifestFile>) -> Vec<ManifestFile> {

@@ -234,3 +234,21 @@ fn the_exported_camera_is_the_documented_one() {
         assert!((row - axis).length() < 1e-12);
     }
 }
+
+#[test]
+fn shards_are_dealt_round_robin_as_documented() {
+    states("shard K holds the runs with\n  `p mod N = K`");
+    states("K =\n  `SLURM_ARRAY_TASK_ID − SLURM_ARRAY_TASK_MIN`");
+    use rsasim::shard::{ShardSpec, runs_of_shard};
+    for (r, n) in [(10, 3), (40, 7), (3, 5)] {
+        for k in 0..n {
+            let spec = ShardSpec::new(k, n).unwrap();
+            let by_rule: Vec<usize> = (0..r).filter(|p| p % n == k).collect();
+            assert_eq!(runs_of_shard(r, spec), by_rule);
+        }
+    }
+    assert_eq!(
+        ShardSpec::new(3, 12).unwrap().folder_name(),
+        "shard-03-of-12"
+    );
+}

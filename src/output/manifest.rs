@@ -60,11 +60,15 @@ pub struct Manifest {
     /// The scenario's master seed (absent in a blind images folder).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
-    /// Number of runs.
+    /// Number of runs (in a shard folder: the runs it holds).
     pub runs: usize,
     /// In a truth folder: the images folder it belongs to.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub images: Option<ImagesBinding>,
+    /// In a shard folder (`rsasim SCENARIO --shard K/N`): which shard it is and which runs it
+    /// holds; absent in every other folder, a merged one included.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardRecord>,
     /// Every file of the folder but this one, sorted by path.
     pub files: Vec<ManifestFile>,
 }
@@ -100,6 +104,20 @@ pub struct ImagesBinding {
     /// The images folder's name when it was written (where `rsasim verify` looks for it, beside
     /// the truth folder, unless given `--images`).
     pub folder: String,
+}
+
+/// What a shard folder holds of its protocol (see [`crate::shard`] for the split).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ShardRecord {
+    /// The shard's index K, from 0 to `count` − 1.
+    pub index: usize,
+    /// The number of shards N the protocol was split into.
+    pub count: usize,
+    /// The ids of the runs this folder holds, in protocol order.
+    pub runs: Vec<String>,
+    /// The ids of every run of the protocol, in order: what the N shards hold together.
+    pub protocol_runs: Vec<String>,
 }
 
 /// A file of the output folder.
@@ -178,6 +196,7 @@ mod tests {
             seed: Some(7),
             runs: 1,
             images: None,
+            shard: None,
             files: vec![ManifestFile {
                 path: "a".into(),
                 sha256: "11".repeat(32),

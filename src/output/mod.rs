@@ -9,6 +9,7 @@ pub mod folder_readme;
 pub mod html_text;
 pub mod manifest;
 pub mod measured;
+pub mod merge;
 pub mod preview;
 pub mod study;
 pub mod tiff;
@@ -17,6 +18,7 @@ pub mod verify;
 
 pub use manifest::{
     Build, ImagesBinding, Layout, MANIFEST_FORMAT, Manifest, ManifestFile, OUTPUT_FORMAT,
+    ShardRecord,
 };
 pub use measured::{MEASURED_FORMAT, Measured};
 pub use truth::{FileRef, ImageTruth, ProjectedMarker, TRUTH_FORMAT, Truth};

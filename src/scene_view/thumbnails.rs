@@ -28,6 +28,7 @@ pub fn first_run_thumbnails(checked: Checked) -> std::io::Result<Vec<Vec<ImageVi
         setup: checked.setup,
         previews: false,
         runs: vec![first],
+        shard: None,
         warnings: Vec::new(),
         cost: checked.cost,
         // Thumbnails come from the TIFFs alone.

@@ -1,0 +1,164 @@
+//! The cluster files in `deploy/`: the Kubernetes manifests pass a schema check of the Kubernetes
+//! API (`kubernetes-validate` from PyPI, which ships the schemas: no cluster needed), and they
+//! agree with themselves and with rsasim (the shard count is the Job's completions; the merge
+//! takes that split's shards). The SLURM scripts parse; `deploy/slurm/selftest.sh` runs them on a
+//! real single-node SLURM cluster (`.ci/run` calls it).
+//!
+//! A tool that is missing fails the test when `CI` is set; otherwise the test prints a loud
+//! `SKIPPED` line and returns.
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+const MANIFESTS: [&str; 2] = [
+    "deploy/k8s/rsasim-shards.yaml",
+    "deploy/k8s/rsasim-merge.yaml",
+];
+
+/// The `kubernetes-validate` command, or `None` (fails under CI, SKIPPED otherwise).
+fn kubernetes_validate() -> Option<PathBuf> {
+    let tool = std::env::var_os("RSASIM_KUBERNETES_VALIDATE")
+        .map_or_else(|| PathBuf::from("kubernetes-validate"), PathBuf::from);
+    let ok = Command::new(&tool)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "kubernetes-validate is missing (pip install kubernetes-validate==1.37.0); CI must run this test"
+        );
+        eprintln!(
+            "SKIPPED (needs kubernetes-validate: python3 -m venv V && V/bin/pip install kubernetes-validate==1.37.0, then put V/bin on PATH)"
+        );
+        return None;
+    }
+    Some(tool)
+}
+
+fn text(path: &str) -> String {
+    std::fs::read_to_string(common::root().join(path)).unwrap()
+}
+
+#[test]
+fn kubernetes_manifests_pass_the_api_schema() {
+    let Some(tool) = kubernetes_validate() else {
+        return;
+    };
+    // Strict: unknown keys are errors. The newest API the tool knows and an older one (1.27,
+    // where Indexed Jobs had long been stable).
+    for version in ["1.37.0", "1.27.0"] {
+        let mut cmd = Command::new(&tool);
+        cmd.args(["--strict", "-k", version])
+            .args(MANIFESTS)
+            .current_dir(common::root());
+        let o = cmd.output().unwrap();
+        let out =
+            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{version}: {out}");
+        for m in MANIFESTS {
+            assert!(out.contains(&format!("{m} passed")), "{version}: {out}");
+        }
+    }
+    // The checker does reject a mistake: a misspelt key in the Job spec.
+    let tmp = tempfile::tempdir().unwrap();
+    let bad = tmp.path().join("bad.yaml");
+    std::fs::write(
+        &bad,
+        text(MANIFESTS[0]).replace("  backoffLimit:", "  backofLimit:"),
+    )
+    .unwrap();
+    let o = Command::new(&tool)
+        .arg("--strict")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("'backofLimit' was unexpected"));
+}
+
+/// The value of the first line `key: value` (trimmed, quotes removed).
+fn value_of(yaml: &str, key: &str) -> String {
+    yaml.lines()
+        .find_map(|l| l.trim().strip_prefix(&format!("{key}:")))
+        .unwrap_or_else(|| panic!("no {key}"))
+        .trim()
+        .trim_matches('"')
+        .to_string()
+}
+
+#[test]
+fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
+    let job = text(MANIFESTS[0]);
+    assert_eq!(value_of(&job, "completionMode"), "Indexed");
+    let completions = value_of(&job, "completions");
+    let args: Vec<String> = job
+        .lines()
+        .map(str::trim)
+        .skip_while(|l| *l != "args:")
+        .skip(1)
+        .take_while(|l| l.starts_with("- "))
+        .map(|l| l[2..].trim_matches('"').to_string())
+        .collect();
+    let after = |flag: &str| {
+        let i = args.iter().position(|a| a == flag).unwrap();
+        args[i + 1].clone()
+    };
+    assert_eq!(after("--shard"), "auto");
+    assert_eq!(after("--shard-count"), completions);
+    let merge = text(MANIFESTS[1]);
+    assert!(
+        merge.contains(&format!("{}/shard-*-of-{completions} ", after("--out"))),
+        "the merge must glob the shards of this split"
+    );
+    // The same arguments in a pod of index completions − 1 are accepted and write that shard.
+    let tmp = tempfile::tempdir().unwrap();
+    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
+    let out = tmp.path().join("shards");
+    let o = common::rsasim(
+        &[
+            "tests/scenarios/shards.toml",
+            "--shard",
+            "auto",
+            "--shard-count",
+            &completions,
+            "--out",
+            out.to_str().unwrap(),
+            common::ALLOW_MODELS[0],
+            common::ALLOW_MODELS[1],
+        ],
+        &[("JOB_COMPLETION_INDEX", &last)],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        out.join(format!("shard-{last}-of-{completions}/manifest.json"))
+            .is_file()
+    );
+}
+
+#[test]
+fn the_slurm_scripts_parse() {
+    for script in [
+        "deploy/slurm/rsasim-shard.sbatch",
+        "deploy/slurm/rsasim-merge.sbatch",
+        "deploy/slurm/submit.sh",
+        "deploy/slurm/selftest.sh",
+    ] {
+        let o = Command::new("bash")
+            .args(["-n", script])
+            .current_dir(common::root())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{script}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(text(script).contains("set -euo pipefail"), "{script}");
+    }
+    // The array task takes its shard from SLURM, the merge only this split's shards.
+    assert!(text("deploy/slurm/rsasim-shard.sbatch").contains("--shard auto --out \"$shards\""));
+    assert!(text("deploy/slurm/rsasim-merge.sbatch").contains("shard-*-of-\"$count\""));
+}
