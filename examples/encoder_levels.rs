@@ -10,6 +10,9 @@
 
 use std::time::Instant;
 
+use rsasim::output::exr::zip_predicted;
+use rsasim::output::tiff::horizontal_predicted;
+
 use miniz_oxide_exr::deflate::core::{
     CompressorOxide, TDEFLFlush, TDEFLStatus, compress, create_comp_flags_from_zip_params,
 };
@@ -58,36 +61,11 @@ fn main() {
             let w = w as usize;
             let rows = 1_000_000usize.div_ceil(2 * w);
             for strip in px.chunks(w * rows) {
-                let mut s = Vec::with_capacity(strip.len() * 2);
-                for row in strip.chunks(w) {
-                    let mut previous = 0u16;
-                    for &v in row {
-                        s.extend_from_slice(&v.wrapping_sub(previous).to_le_bytes());
-                        previous = v;
-                    }
-                }
-                tiff_strips.push(s);
+                tiff_strips.push(horizontal_predicted(strip, w));
             }
             for block in px.chunks(w * 16) {
-                let n = block.len() * 4;
-                let mut split = vec![0u8; n];
-                let (even, odd) = split.split_at_mut(n / 2);
-                for ((v, e), o) in block
-                    .iter()
-                    .zip(even.chunks_exact_mut(2))
-                    .zip(odd.chunks_exact_mut(2))
-                {
-                    let b = (*v as f32).to_le_bytes();
-                    e.copy_from_slice(&[b[0], b[2]]);
-                    o.copy_from_slice(&[b[1], b[3]]);
-                }
-                let mut previous = split[0];
-                for b in &mut split[1..] {
-                    let current = *b;
-                    *b = current.wrapping_sub(previous).wrapping_add(128);
-                    previous = current;
-                }
-                exr_blocks.push(split);
+                let samples: Vec<f32> = block.iter().map(|&v| f32::from(v)).collect();
+                exr_blocks.push(zip_predicted(&samples));
             }
         }
     }

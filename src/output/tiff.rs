@@ -240,6 +240,13 @@ fn encode_with(
 /// One Deflate strip: `rows` (whole rows of `width`) with the horizontal predictor, in the
 /// file's (native) byte order, as a zlib stream from `fdeflate`.
 fn deflate_strip(rows: &[u16], width: usize) -> Vec<u8> {
+    fdeflate::compress_to_vec(&horizontal_predicted(rows, width))
+}
+
+/// Whole rows of `width` samples with TIFF's horizontal predictor (per row `d[0] = p[0]`,
+/// `d[i] = p[i] − p[i−1]` wrapping), as native-endian bytes: what a Deflate strip compresses.
+/// Public for `examples/encoder_levels.rs`.
+pub fn horizontal_predicted(rows: &[u16], width: usize) -> Vec<u8> {
     let mut predicted = Vec::with_capacity(rows.len() * 2);
     for row in rows.chunks_exact(width) {
         let mut previous = 0u16;
@@ -248,7 +255,7 @@ fn deflate_strip(rows: &[u16], width: usize) -> Vec<u8> {
             previous = p;
         }
     }
-    fdeflate::compress_to_vec(&predicted)
+    predicted
 }
 
 /// A Deflate TIFF ([`check`]ed inputs): the strips compressed in parallel ([`deflate_strip`]),
