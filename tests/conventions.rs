@@ -252,3 +252,60 @@ fn shards_are_dealt_round_robin_as_documented() {
         "shard-03-of-12"
     );
 }
+
+/// The binary-mode noise of a row, rebuilt from the document's recipe alone (table thresholds on
+/// `x >> 11`, weights from the mode, cut at 2⁻⁶⁴, clamp at I_max), equals `add_noise`'s pixels.
+#[test]
+fn binary_noise_is_the_documented_table_inversion() {
+    states("`x >> 11 < T_k`");
+    states("`T_k = round(C_k / S · 2⁵³)`");
+    states("first weight below 2⁻⁶⁴");
+    for (level, i_max) in [(0.45, 65535u16), (0.001, 65535), (0.9, 255), (0.002, 4095)] {
+        let lambda = level * f64::from(i_max);
+        let cut = 2f64.powi(-64);
+        let mode = lambda.floor();
+        let mut up = vec![1.0f64];
+        let mut k = mode;
+        loop {
+            let w = up[up.len() - 1] * (lambda / (k + 1.0));
+            if w < cut {
+                break;
+            }
+            up.push(w);
+            k += 1.0;
+        }
+        let mut down = Vec::new();
+        let (mut w, mut k) = (1.0f64, mode);
+        while k > 0.0 {
+            w *= k / lambda;
+            if w < cut {
+                break;
+            }
+            down.push(w);
+            k -= 1.0;
+        }
+        let k_lo = mode as u64 - down.len() as u64;
+        let weights: Vec<f64> = down.iter().rev().chain(&up).copied().collect();
+        let total: f64 = weights.iter().sum();
+        let k_hi = k_lo + weights.len() as u64 - 1;
+        let last = k_hi.min(u64::from(i_max));
+        let mut thresholds = Vec::new();
+        let mut c = 0.0;
+        for &w in &weights[..(last.saturating_sub(k_lo)) as usize] {
+            c += w;
+            thresholds.push(libm::round(c / total * 2f64.powi(53)) as u64);
+        }
+        thresholds.push(1 << 53);
+        let k_lo = k_lo.min(u64::from(i_max));
+        let key = NoiseKey::derive(7, 1, 2, "model", "det1");
+        let width = 3000;
+        let mut row = vec![0u16; width];
+        rsasim::noise::add_noise(&mut row, width, level, i_max, &key);
+        let mut rng = key.row_rng(0);
+        for (i, &px) in row.iter().enumerate() {
+            let u = rand_core::Rng::next_u64(&mut rng) >> 11;
+            let index = thresholds.iter().position(|&t| u < t).unwrap() as u64;
+            assert_eq!(u64::from(px), k_lo + index, "level {level}, pixel {i}");
+        }
+    }
+}

@@ -4,9 +4,10 @@
 //! In binary mode a clean image holds `I_max` where an object covers the pixel and 0 elsewhere,
 //! so "not covered" means "value 0"; pixels with any other value are left as they are.
 //!
-//! **Which sample lands where.** Row `j` draws from its own stream (see [`stream`]): the
-//! sampler of [`poisson`] is run once for *every* pixel of the row, left to right, and pixel
-//! `i` takes the `i`-th sample if it is background; a covered pixel draws its sample and
+//! **Which sample lands where.** Row `j` draws from its own stream (see [`stream`]): pixel `i`
+//! of the row takes the `i`-th `u64` of the stream, turned into a sample of the law of
+//! `min(X, I_max)`, `X ~ Poisson(level · I_max)`, by the inversion table of [`table`] (one table
+//! per image, one `u64` per pixel), if it is background; a covered pixel draws its `u64` and
 //! discards it. So the noise value of a background pixel depends only on the key, its row and
 //! its column, never on which other pixels are covered (the same seed gives the same noise
 //! field under a different phantom pose), and a reviewer can recompute any pixel without the
@@ -18,10 +19,12 @@
 pub mod normal;
 pub mod poisson;
 pub mod stream;
+pub mod table;
 
 pub use normal::standard_normal;
 pub use poisson::Poisson;
 pub use stream::NoiseKey;
+pub use table::PoissonTable;
 
 use rayon::prelude::*;
 
@@ -30,27 +33,41 @@ use rayon::prelude::*;
 /// Every pixel whose value is 0 becomes `min(sample, i_max)` where `sample` is drawn from a
 /// Poisson law of mean `level · i_max` on the stream of row `row_index`; pixels ≠ 0 are
 /// unchanged (their samples are drawn and discarded, see the module documentation).
-/// `level == 0` returns at once.
+/// `level == 0` returns at once. It builds the image's table for this one row; [`add_noise`]
+/// builds it once for all rows.
 ///
 /// # Panics
 /// When `level` is negative, NaN or infinite.
 pub fn add_noise_row(row: &mut [u16], row_index: u32, level: f64, i_max: u16, key: &NoiseKey) {
+    if let Some(table) = image_table(level, i_max) {
+        noise_row(row, row_index, &table, key);
+    }
+}
+
+/// The inversion table of an image's noise, the law of `min(X, i_max)` with
+/// `X ~ Poisson(level · i_max)`; `None` for `level == 0` or `i_max == 0` (nothing is drawn).
+///
+/// # Panics
+/// When `level` is negative, NaN or infinite.
+fn image_table(level: f64, i_max: u16) -> Option<PoissonTable> {
     assert!(
         level.is_finite() && level >= 0.0,
         "noise level must be finite and ≥ 0, got {level}"
     );
-    if level == 0.0 {
-        return;
-    }
-    let poisson = Poisson::new(level * f64::from(i_max));
+    let lambda = level * f64::from(i_max);
+    (lambda > 0.0).then(|| PoissonTable::new(lambda, u64::from(i_max)))
+}
+
+/// [`add_noise_row`] with the image's table already built.
+fn noise_row(row: &mut [u16], row_index: u32, table: &PoissonTable, key: &NoiseKey) {
     let mut rng = key.row_rng(row_index);
     // One sample per pixel, in order (`fill` = `sample` once per pixel, only faster).
     let mut samples = vec![0u64; row.len()];
-    poisson.fill(&mut rng, &mut samples);
-    let max = u64::from(i_max);
+    table.fill(&mut rng, &mut samples);
     for (px, &sample) in row.iter_mut().zip(&samples) {
         if *px == 0 {
-            *px = sample.min(max) as u16;
+            // The table's values never exceed its cap, i_max.
+            *px = sample as u16;
         }
     }
 }
@@ -73,17 +90,13 @@ pub fn add_noise(pixels: &mut [u16], width: usize, level: f64, i_max: u16, key: 
         (pixels.len() / width) as u64 <= 1u64 << 32,
         "more than 2³² rows"
     );
-    assert!(
-        level.is_finite() && level >= 0.0,
-        "noise level must be finite and ≥ 0, got {level}"
-    );
-    if level == 0.0 {
+    let Some(table) = image_table(level, i_max) else {
         return;
-    }
+    };
     pixels
         .par_chunks_mut(width)
         .enumerate()
-        .for_each(|(j, row)| add_noise_row(row, j as u32, level, i_max, key));
+        .for_each(|(j, row)| noise_row(row, j as u32, &table, key));
 }
 
 /// The noise field alone, `width × height`: what [`add_noise`] puts on an image with no covered

@@ -241,6 +241,20 @@ fn compress_blocks(
 /// (little-endian samples) if that is not larger than the compressed form, as OpenEXR does.
 fn zip_block(samples: &[f32], level: u8) -> Vec<u8> {
     let n = samples.len() * 4;
+    let split = zip_predicted(samples);
+    let compressed = miniz_oxide_exr::deflate::compress_to_vec_zlib(&split, level);
+    if compressed.len() < n {
+        compressed
+    } else {
+        samples.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+}
+
+/// The bytes OpenEXR's ZIP compression deflates for one block of samples: little-endian bytes
+/// split into even- and odd-indexed halves, then delta-coded (`b[i] − b[i−1] + 128`, the first
+/// byte kept). Public for `examples/encoder_levels.rs`.
+pub fn zip_predicted(samples: &[f32]) -> Vec<u8> {
+    let n = samples.len() * 4;
     let mut split = vec![0u8; n];
     let (even, odd) = split.split_at_mut(n / 2);
     for ((v, e), o) in samples
@@ -258,12 +272,7 @@ fn zip_block(samples: &[f32], level: u8) -> Vec<u8> {
         *b = current.wrapping_sub(previous).wrapping_add(128);
         previous = current;
     }
-    let compressed = miniz_oxide_exr::deflate::compress_to_vec_zlib(&split, level);
-    if compressed.len() < n {
-        compressed
-    } else {
-        samples.iter().flat_map(|v| v.to_le_bytes()).collect()
-    }
+    split
 }
 
 fn latin1(what: &str, s: &str) -> Result<Text, String> {
