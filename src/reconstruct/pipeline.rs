@@ -9,7 +9,7 @@ use glam::{DMat3, DVec2, DVec3};
 
 use super::beads::{find_beads, implant_metal_mask, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
-use super::contour::{Outline, outline};
+use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::density::{Reading, density};
 use super::detect::{Blob, blobs};
@@ -17,8 +17,9 @@ use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
+use super::model_outline::OutlineSegment;
 use super::selvik::calibrate_selvik;
-use super::silhouette::{GOOD_FIT_PX, SilhouetteView, fit_silhouette, refine};
+use super::silhouette::{GOOD_FIT_PX, Remeasure, SilhouetteView, fit_silhouette};
 use super::{Method, ModelMethod};
 use crate::expand::DetectorState;
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
@@ -739,9 +740,6 @@ fn model_pose(pose: &Pose, quality: FitQuality) -> MeasuredPose {
     }
 }
 
-/// Rounds of edge points measured along the fitted outline's normals, each followed by a fit.
-const ALONG_OUTLINE_ROUNDS: usize = 2;
-
 /// Attenuation mode: the edge windows for a model near `nominal` in the view of `c` and `det`
 /// (the focal spot's penumbra at the model's nominal depth: object-to-detector over
 /// source-to-object distance). `None` in binary mode.
@@ -802,35 +800,19 @@ fn find_model_by_outline(
             outline,
         })
         .collect();
-    let mut fit = fit_silhouette(model, &views, nominal)?;
-    // Graded images: the edge measured again along the fitted outline's normals, twice
-    // (`edge::edge_points_along_outline`), independent of the segmentation.
-    if graded_images.iter().all(Option::is_some) {
-        for _ in 0..ALONG_OUTLINE_ROUNDS {
-            let along: Vec<Outline> = outlines
-                .iter()
-                .zip(&graded_images)
-                .filter_map(|((frame, source_mm, o), g)| {
-                    let (img, windows) = g.as_ref()?;
-                    let segments = model.outline(&fit.pose, *source_mm, frame);
-                    Some(Outline {
-                        edge_points: edge_points_along_outline(img, &segments, *windows),
-                        ..o.clone()
-                    })
-                })
-                .collect();
-            let views: Vec<SilhouetteView> = outlines
-                .iter()
-                .zip(&along)
-                .map(|((frame, source_mm, _), outline)| SilhouetteView {
-                    frame: *frame,
-                    source_mm: *source_mm,
-                    outline,
-                })
-                .collect();
-            fit = refine(model, &views, fit.pose)?;
-        }
-    }
+    // Graded images: every start's fit is refined again on edge points measured along its
+    // outline's normals (`edge::edge_points_along_outline`), independent of the segmentation.
+    let remeasure = |k: usize, segments: &[OutlineSegment]| match &graded_images[k] {
+        Some((img, windows)) => edge_points_along_outline(img, segments, *windows),
+        None => views[k].outline.edge_points.clone(),
+    };
+    let graded = graded_images.iter().all(Option::is_some);
+    let fit = fit_silhouette(
+        model,
+        &views,
+        nominal,
+        graded.then_some(&remeasure as Remeasure),
+    )?;
     let mut flags = Vec::new();
     if fit.mean_distance_px > GOOD_FIT_PX {
         flags.push(format!("contour distance > {GOOD_FIT_PX} px"));

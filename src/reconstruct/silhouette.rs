@@ -75,11 +75,22 @@ pub struct SilhouetteFit {
     pub iterations: usize,
 }
 
-/// Finds the model's pose from its outlines, starting at `start` (the nominal pose).
+/// Measures view `k`'s edge points again near a predicted outline (its segments): for graded
+/// images, `super::edge::edge_points_along_outline`.
+pub type Remeasure<'r> = &'r dyn Fn(usize, &[OutlineSegment]) -> Vec<DVec2>;
+
+/// Rounds of edge points measured again along the fitted outline ([`Remeasure`]), each followed
+/// by a refinement.
+const REMEASURE_ROUNDS: usize = 2;
+
+/// Finds the model's pose from its outlines, starting at `start` (the nominal pose). With
+/// `remeasure`, every start's refined fit is refined again on edge points measured along its
+/// outline ([`REMEASURE_ROUNDS`] times) before it is judged.
 pub fn fit_silhouette(
     model: &OutlineModel,
     views: &[SilhouetteView],
     start: Pose,
+    remeasure: Option<Remeasure>,
 ) -> Result<SilhouetteFit, String> {
     if views.len() < 2 {
         return Err(format!(
@@ -90,7 +101,12 @@ pub fn fit_silhouette(
     let coarse = CoarseSearch::new(model, views)?;
     let mut best: Option<SilhouetteFit> = None;
     for (score, pose) in coarse.grid(start) {
-        let fit = match refine(model, views, coarse.polish(pose, score)) {
+        let refined = refine(model, views, coarse.polish(pose, score));
+        let refined = match (refined, remeasure) {
+            (Ok(fit), Some(r)) => refine_remeasured(model, views, fit, r),
+            (other, _) => other,
+        };
+        let fit = match refined {
             Ok(fit) => fit,
             Err(e) if best.is_none() => return Err(e),
             Err(_) => continue,
@@ -409,8 +425,39 @@ impl<'s> SegmentGrid<'s> {
     }
 }
 
+/// [`REMEASURE_ROUNDS`] refinements from `fit`, each on edge points measured again along the
+/// outline at the pose before it.
+fn refine_remeasured(
+    model: &OutlineModel,
+    views: &[SilhouetteView],
+    mut fit: SilhouetteFit,
+    remeasure: Remeasure,
+) -> Result<SilhouetteFit, String> {
+    for _ in 0..REMEASURE_ROUNDS {
+        let outlines: Vec<Outline> = views
+            .iter()
+            .enumerate()
+            .map(|(k, v)| Outline {
+                edge_points: remeasure(k, &model.outline(&fit.pose, v.source_mm, &v.frame)),
+                ..v.outline.clone()
+            })
+            .collect();
+        let again: Vec<SilhouetteView> = views
+            .iter()
+            .zip(&outlines)
+            .map(|(v, outline)| SilhouetteView {
+                frame: v.frame,
+                source_mm: v.source_mm,
+                outline,
+            })
+            .collect();
+        fit = refine(model, &again, fit.pose)?;
+    }
+    Ok(fit)
+}
+
 /// Stage 2: iterative closest points with Gauss–Newton steps (module docs), from `pose`.
-pub fn refine(
+fn refine(
     model: &OutlineModel,
     views: &[SilhouetteView],
     mut pose: Pose,
@@ -574,7 +621,7 @@ mod tests {
                 rotation: truth.rotation * rotation_xyz_deg(dr),
             };
             let t0 = std::time::Instant::now();
-            let fit = fit_silhouette(&model, &views, start).unwrap();
+            let fit = fit_silhouette(&model, &views, start, None).unwrap();
             let (dx, da) = errors(&fit.pose, &truth);
             eprintln!(
                 "start off by {dp:?} mm, {dr:?}°: error {dx:.4} mm, {da:.4}°, residual {:.3} px over {} points, {} iterations, {:.2} s",
