@@ -18,4 +18,5 @@ pub mod scenario;
 pub mod scene_view;
 pub mod simulate;
 pub mod spectrum;
+pub mod sweep;
 pub mod trace;
