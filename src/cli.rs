@@ -265,8 +265,13 @@ pub enum Command {
         /// Then run the reference program (`rsasim reconstruct`, default methods) on every point
         /// and `rsasim evaluate DIR`: each point's report and the sweep's summary in
         /// DIR/sweep-report/ (sweep_summary.csv, sweep_summary.html).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "no_run")]
         evaluate: bool,
+        /// Write the sweep folder's point scenarios and index, and run nothing: e.g. to run each
+        /// point as its own cluster job (`rsasim DIR/points/<id>.toml --out DIR/<id>`). A later
+        /// `rsasim sweep` on the same folder runs only the points still missing.
+        #[arg(long)]
+        no_run: bool,
         /// What the base scenario may read and use beyond the defaults (--allow-large also lifts
         /// the cap of 1000 points).
         #[command(flatten)]

@@ -50,8 +50,9 @@ fn main() -> ExitCode {
             file,
             out,
             evaluate,
+            no_run,
             allow,
-        }) => sweep(&file, &out, evaluate, &allow.into()),
+        }) => sweep(&file, &out, evaluate, no_run, &allow.into()),
         Some(Command::Export {
             out,
             to,
@@ -561,6 +562,7 @@ fn sweep(
     file: &std::path::Path,
     out: &std::path::Path,
     evaluate_too: bool,
+    no_run: bool,
     allow: &simulate::Allowances,
 ) -> Result<(), u8> {
     let start = Instant::now();
@@ -573,6 +575,16 @@ fn sweep(
         );
         1
     })?;
+    if no_run {
+        eprintln!(
+            "rsasim sweep: {} point scenario(s) written to {}; run each with `rsasim {}/<id>.toml --out {}/<id>`",
+            sweep.points.len(),
+            out.join(rsasim::sweep::prepare::POINTS_DIR).display(),
+            out.join(rsasim::sweep::prepare::POINTS_DIR).display(),
+            out.display()
+        );
+        return Ok(());
+    }
     // The points read only their own folder's copies of the base scenario's files.
     let point_allow = simulate::Allowances {
         dirs: Vec::new(),

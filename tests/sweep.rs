@@ -235,6 +235,11 @@ fn a_sweep_resumes_into_its_own_folder_and_refuses_another() {
         "[[parameters]]\nkey = \"seed\"\nvalues = [1, 2]\n[[parameters]]\nkey = \"protocol.runs_per_level\"\nvalues = [1]\n",
     );
     let out = tmp.path().join("s");
+    // --no-run writes the points and runs none; the next sweep runs them.
+    let (code, stderr) = sweep_cli(&file, &out, &["--no-run"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(out.join("points/p01.toml").is_file() && out.join("sweep.json").is_file());
+    assert!(!out.join("p00").exists() && !out.join("p01").exists());
     let (code, stderr) = sweep_cli(&file, &out, &[]);
     assert_eq!(code, Some(0), "{stderr}");
     // A stopped sweep: one point missing. The rerun keeps p00 as it is and writes p01 again.
