@@ -170,9 +170,12 @@ pub fn prepare(path: &Path, allow: &Allowances) -> Result<Sweep, Vec<Diagnostic>
             };
             let sha = hex(&Sha256::digest(pkg.bytes.as_slice()));
             let name = format!("{}-{}.{}", model.id, &sha[..16], pkg.extension);
-            let unit_mm = checked.loaded.scenario.phantoms[i]
-                .mesh
-                .as_ref()
+            let unit_mm = checked
+                .loaded
+                .scenario
+                .phantoms
+                .get(i)
+                .and_then(|p| p.mesh.as_ref())
                 .and_then(|m| m.unit_mm)
                 .unwrap_or_else(|| crate::phantom::mesh_io::default_unit_mm(file_path));
             if let Some(toml::Value::Table(mesh)) = doc
