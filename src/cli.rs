@@ -96,6 +96,12 @@ impl From<AllowArgs> for rsasim::simulate::Allowances {
     }
 }
 
+/// `rsasim evaluate`'s default confidence level (also `rsasim sweep --evaluate`'s).
+pub const DEFAULT_CONFIDENCE: f64 = 0.95;
+
+/// `rsasim evaluate`'s default report formats (also `rsasim sweep --evaluate`'s).
+pub const DEFAULT_FORMATS: &str = "md,csv,tex,html";
+
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
@@ -136,9 +142,12 @@ pub enum Command {
         allow: AllowArgs,
     },
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
-    /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report.
+    /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report. On a sweep
+    /// folder: every point's report, then the sweep's summary (sweep_summary.csv and
+    /// sweep_summary.html in DIR/sweep-report/, or --report).
     Evaluate {
-        /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/).
+        /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/), or
+        /// a sweep folder (it holds sweep.json).
         out: PathBuf,
         /// File name of the results in every run folder (schemas/measured.schema.json). Default:
         /// measured.json if present, else the one measured*.json name the run folders hold
@@ -156,7 +165,7 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
         /// Confidence level of τ, in (0, 1).
-        #[arg(long, default_value_t = 0.95, value_name = "LEVEL")]
+        #[arg(long, default_value_t = DEFAULT_CONFIDENCE, value_name = "LEVEL")]
         confidence: f64,
         /// One- or two-sided τ; the paper's τ = 1.73 at N = 20 is one-sided 95 %.
         #[arg(long, default_value = "one", value_parser = ["one", "two"])]
@@ -166,7 +175,7 @@ pub enum Command {
         /// google-chrome on PATH (none found: exit 2 before anything is written).
         #[arg(
             long,
-            default_value = "md,csv,tex,html",
+            default_value = DEFAULT_FORMATS,
             value_delimiter = ',',
             value_name = "LIST"
         )]
@@ -178,6 +187,7 @@ pub enum Command {
         mtpm_threshold_mm: f64,
         /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
         /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
+        /// On a sweep folder: the summary's folder (default DIR/sweep-report).
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
         /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
@@ -202,9 +212,9 @@ pub enum Command {
     /// box beads, find each model from its beads, and write
     /// measured-rsasim-<calibration>-<model>.json into every run folder (never over another
     /// software's results). It reads only what a real RSA program has: images, nominal set-up,
-    /// phantoms/ (never truth.json).
+    /// phantoms/ (never truth.json). On a sweep folder: every point's output folder in turn.
     Reconstruct {
-        /// The output folder of a simulation.
+        /// The output folder of a simulation, or a sweep folder.
         out: PathBuf,
         /// How each beamline is calibrated from the box beads. dlt: normalised DLT on both facing
         /// plates, decomposition with the known pixel pitch, joint Levenberg–Marquardt fit of
@@ -277,6 +287,33 @@ pub enum Command {
         /// only where a link is impossible (another file system).
         #[arg(long)]
         copy: bool,
+    },
+    /// Run a parameter sweep: expand the sweep file (a base scenario and the values of some of its
+    /// keys, as a grid or zipped) into one standalone scenario per point, check them all, write
+    /// them into DIR/points/ and run each into DIR/<point id>/ as `rsasim POINT.toml --out
+    /// DIR/<point id>` would. Every point shares the base scenario's seed (common random numbers)
+    /// unless the sweep varies `seed`. Run again on the same DIR, a stopped sweep resumes: complete
+    /// points are kept, missing ones run.
+    Sweep {
+        /// The sweep file (TOML), e.g. scenarios/sweeps/tube_angle.toml.
+        file: PathBuf,
+        /// The sweep folder: new or empty, or the folder of an earlier run of the same sweep.
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Then run the reference program (`rsasim reconstruct`, default methods) on every point
+        /// and `rsasim evaluate DIR`: each point's report and the sweep's summary in
+        /// DIR/sweep-report/ (sweep_summary.csv, sweep_summary.html).
+        #[arg(long, conflicts_with = "no_run")]
+        evaluate: bool,
+        /// Write the sweep folder's point scenarios and index, and run nothing: e.g. to run each
+        /// point as its own cluster job (`rsasim DIR/points/<id>.toml --out DIR/<id>`). A later
+        /// `rsasim sweep` on the same folder runs only the points still missing.
+        #[arg(long)]
+        no_run: bool,
+        /// What the base scenario may read and use beyond the defaults (--allow-large also lifts
+        /// the cap of 1000 points).
+        #[command(flatten)]
+        allow: AllowArgs,
     },
     /// Print a JSON Schema: scenario (default), truth, measured or manifest.
     Schema {

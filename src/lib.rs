@@ -19,4 +19,5 @@ pub mod scene_view;
 pub mod shard;
 pub mod simulate;
 pub mod spectrum;
+pub mod sweep;
 pub mod trace;

@@ -37,7 +37,7 @@ fn main() -> ExitCode {
             model_method,
             measured,
             overwrite,
-        }) => reconstruct(
+        }) => reconstruct_any(
             &out,
             &rsasim::reconstruct::Options {
                 method,
@@ -46,6 +46,13 @@ fn main() -> ExitCode {
                 overwrite,
             },
         ),
+        Some(Command::Sweep {
+            file,
+            out,
+            evaluate,
+            no_run,
+            allow,
+        }) => sweep(&file, &out, evaluate, no_run, &allow.into()),
         Some(Command::Export {
             out,
             to,
@@ -430,7 +437,7 @@ fn evaluate(
     formats: &[String],
     report_dir: Option<std::path::PathBuf>,
 ) -> Result<(), u8> {
-    use rsasim::evaluate::{self, MeasuredSource, Options, report, stats};
+    use rsasim::evaluate::{MeasuredSource, Options, report, stats};
     if !(confidence > 0.0 && confidence < 1.0) {
         eprintln!(
             "error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95"
@@ -480,25 +487,50 @@ fn evaluate(
         },
         mtpm_threshold_mm,
     };
-    let start = Instant::now();
-    let result = evaluate::evaluate_with_truth(out, truth, &options)
-        .map_err(|errors| report_errors(&errors))?;
-    for note in &result.notes {
-        eprintln!("note: {note}");
+    if rsasim::sweep::is_sweep_folder(out) {
+        return evaluate_sweep(out, truth, &options, &formats, browser.as_ref(), report_dir);
     }
+    let start = Instant::now();
+    let result = score(out, truth, &options)?;
     // The default folder is named after the results file, known once they are read. Scoring
     // writes nothing, so the claim (refused with exit 2) still comes before any file is written.
     let dir = report_dir.unwrap_or_else(|| out.join(report::default_folder_name(&result)));
     let target = report::claim_report_dir(&dir).map_err(|d| report_errors(&[*d]))?;
+    write_report(&result, target, &formats, browser.as_ref(), start)
+}
+
+/// Scores the output folder `out` (with the truth folder of a blind layout), printing notes.
+fn score(
+    out: &std::path::Path,
+    truth: Option<&std::path::Path>,
+    options: &rsasim::evaluate::Options,
+) -> Result<rsasim::evaluate::table::Report, u8> {
+    let result = rsasim::evaluate::evaluate_with_truth(out, truth, options)
+        .map_err(|errors| report_errors(&errors))?;
+    for note in &result.notes {
+        eprintln!("note: {note}");
+    }
+    Ok(result)
+}
+
+/// Writes a scored report into its claimed folder and says what was written.
+fn write_report(
+    result: &rsasim::evaluate::table::Report,
+    target: rsasim::output::commit::OutputTarget,
+    formats: &[rsasim::evaluate::report::Format],
+    browser: Option<&rsasim::evaluate::report::pdf::Browser>,
+    start: Instant,
+) -> Result<(), u8> {
+    use rsasim::evaluate::report;
     target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
-    let written =
-        report::write_reports_into(&result, target, &formats, browser.as_ref()).map_err(|e| {
-            eprintln!(
-                "error: writing the reports into {} failed: {e}",
-                dir.display()
-            );
-            1
-        })?;
+    let dir = target.shown().to_path_buf();
+    let written = report::write_reports_into(result, target, formats, browser).map_err(|e| {
+        eprintln!(
+            "error: writing the reports into {} failed: {e}",
+            dir.display()
+        );
+        1
+    })?;
     for e in &result.excluded {
         eprintln!("excluded: {}: {}", e.run, e.reason);
     }
@@ -507,13 +539,185 @@ fn evaluate(
         result.runs_scored,
         result.excluded.len(),
         start.elapsed().as_secs_f64(),
-        written
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
+        shown(&written)
     );
     Ok(())
+}
+
+/// Paths for a message, joined by `, `.
+fn shown(paths: &[std::path::PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `rsasim evaluate` on a sweep folder: scores every point (nothing written), claims every
+/// point's report folder and the summary's, then writes the point reports and the summary.
+fn evaluate_sweep(
+    dir: &std::path::Path,
+    truth: Option<&std::path::Path>,
+    options: &rsasim::evaluate::Options,
+    formats: &[rsasim::evaluate::report::Format],
+    browser: Option<&rsasim::evaluate::report::pdf::Browser>,
+    report_dir: Option<std::path::PathBuf>,
+) -> Result<(), u8> {
+    use rsasim::evaluate::{MeasuredSource, report};
+    use rsasim::sweep::{folder, summary};
+    if truth.is_some()
+        || matches!(
+            options.measured,
+            MeasuredSource::Csv(_) | MeasuredSource::PerRunIn { .. }
+        )
+    {
+        eprintln!(
+            "error: {}: a sweep folder is evaluated point by point from the results in its run folders; --truth, --csv and --results-in are for one output folder\n  = help: evaluate a point's folder ({}/<point id>) with them, or drop them",
+            dir.display(),
+            dir.display()
+        );
+        return Err(2);
+    }
+    let index = rsasim::sweep::read_index(dir).map_err(|e| report_errors(&e))?;
+    let start = Instant::now();
+    let mut reports = Vec::with_capacity(index.points.len());
+    for p in &index.points {
+        eprintln!("rsasim evaluate: point {}", p.id);
+        reports.push(score(&dir.join(&p.id), None, options)?);
+    }
+    let mut targets = Vec::with_capacity(reports.len());
+    for (p, r) in index.points.iter().zip(&reports) {
+        let point_dir = dir.join(&p.id).join(report::default_folder_name(r));
+        targets.push(report::claim_report_dir(&point_dir).map_err(|d| report_errors(&[*d]))?);
+    }
+    let summary_dir = report_dir.unwrap_or_else(|| dir.join(folder::REPORT_DIR));
+    let summary_target =
+        report::claim_report_dir(&summary_dir).map_err(|d| report_errors(&[*d]))?;
+    for (r, target) in reports.iter().zip(targets) {
+        write_report(r, target, formats, browser, start)?;
+    }
+    summary_target
+        .notes
+        .iter()
+        .for_each(|n| eprintln!("rsasim: {n}"));
+    let written =
+        summary::write(summary_target, &summary::summary(&index, &reports)).map_err(|e| {
+            eprintln!(
+                "error: writing the summary into {} failed: {e}",
+                summary_dir.display()
+            );
+            1
+        })?;
+    eprintln!(
+        "rsasim evaluate: sweep {} ({} points) in {:.2} s -> {}",
+        index.name,
+        index.points.len(),
+        start.elapsed().as_secs_f64(),
+        shown(&written)
+    );
+    Ok(())
+}
+
+/// `rsasim reconstruct` on an output folder, or on every point of a sweep folder (all points
+/// are tried; the worst exit code is returned).
+fn reconstruct_any(
+    out: &std::path::Path,
+    options: &rsasim::reconstruct::Options,
+) -> Result<(), u8> {
+    if !rsasim::sweep::is_sweep_folder(out) {
+        return reconstruct(out, options);
+    }
+    let index = rsasim::sweep::read_index(out).map_err(|e| report_errors(&e))?;
+    let mut worst = Ok(());
+    for p in &index.points {
+        eprintln!("rsasim reconstruct: point {}", p.id);
+        if let Err(code) = reconstruct(&out.join(&p.id), options) {
+            worst = Err(worst.err().map_or(code, |w: u8| w.max(code)));
+        }
+    }
+    worst
+}
+
+/// `rsasim sweep`: prepares every point (errors: exit 2, nothing written), claims the sweep
+/// folder, writes the point scenarios, then runs every pending point with the main command's own
+/// `prepare` and `run`, exactly as `rsasim DIR/points/<id>.toml --out DIR/<id>`; with
+/// `evaluate`, reconstructs every point and evaluates the sweep.
+fn sweep(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    evaluate_too: bool,
+    no_run: bool,
+    allow: &simulate::Allowances,
+) -> Result<(), u8> {
+    let start = Instant::now();
+    let sweep = rsasim::sweep::prepare(file, allow).map_err(|e| report_errors(&e))?;
+    let folder = rsasim::sweep::claim(&sweep, out).map_err(|e| report_errors(&e))?;
+    folder.write_points(&sweep).map_err(|e| {
+        eprintln!(
+            "error: writing the point scenarios into {} failed: {e}",
+            out.display()
+        );
+        1
+    })?;
+    if no_run {
+        eprintln!(
+            "rsasim sweep: {} point scenario(s) written to {}; run each with `rsasim {}/<id>.toml --out {}/<id>`",
+            sweep.points.len(),
+            out.join(rsasim::sweep::prepare::POINTS_DIR).display(),
+            out.join(rsasim::sweep::prepare::POINTS_DIR).display(),
+            out.display()
+        );
+        return Ok(());
+    }
+    // The points read only their own folder's copies of the base scenario's files.
+    let point_allow = simulate::Allowances {
+        dirs: Vec::new(),
+        large: allow.large,
+    };
+    let n = sweep.points.len();
+    for (k, (point, done)) in sweep.points.iter().zip(&folder.done).enumerate() {
+        let what = sweep.assignments(point);
+        if *done {
+            eprintln!(
+                "rsasim sweep: point {} ({}/{n}) is complete from an earlier run, kept: {what}",
+                point.id,
+                k + 1
+            );
+            continue;
+        }
+        eprintln!("rsasim sweep: point {} ({}/{n}): {what}", point.id, k + 1);
+        let plan = prepare(&folder.point_scenario(&point.id), &point_allow)?;
+        run(&plan, Some(folder.point_out(&point.id)), None, false)?;
+    }
+    eprintln!(
+        "rsasim sweep: {n} point(s) in {:.1} s -> {}",
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if !evaluate_too {
+        eprintln!(
+            "reconstruct and score them with `rsasim reconstruct {0}` and `rsasim evaluate {0}`",
+            out.display()
+        );
+        return Ok(());
+    }
+    let reconstructed = reconstruct_any(out, &rsasim::reconstruct::Options::default());
+    evaluate(
+        out,
+        None,
+        None,
+        None,
+        None,
+        cli::DEFAULT_CONFIDENCE,
+        "one",
+        rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+        &cli::DEFAULT_FORMATS
+            .split(',')
+            .map(String::from)
+            .collect::<Vec<_>>(),
+        None,
+    )?;
+    reconstructed
 }
 
 fn schema(name: &str, write_dir: Option<&std::path::Path>) -> Result<(), u8> {

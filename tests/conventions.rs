@@ -309,3 +309,20 @@ fn binary_noise_is_the_documented_table_inversion() {
         }
     }
 }
+
+#[test]
+fn sweep_points_are_ordered_and_named_as_documented() {
+    states("the cartesian product, the first parameter varying\n  slowest");
+    states("(`p00`, `p01`, …; `p000` from 101 points on)");
+    let ids: Vec<String> = [(0, 100), (99, 100), (0, 101), (100, 101)]
+        .iter()
+        .map(|&(i, n)| rsasim::sweep::points::point_id(i, n))
+        .collect();
+    assert_eq!(ids, ["p00", "p99", "p000", "p100"]);
+    let record: rsasim::sweep::file::SweepRecord = toml::from_str(
+        "scenario = \"s.toml\"\n[[parameters]]\nkey = \"a\"\nvalues = [1, 2]\n[[parameters]]\nkey = \"b\"\nvalues = [1, 2, 3]\n",
+    )
+    .unwrap();
+    let order = rsasim::sweep::points::choices(&record);
+    assert_eq!(order[..4], [vec![0, 0], vec![0, 1], vec![0, 2], vec![1, 0]]);
+}

@@ -115,33 +115,16 @@ fn the_page_draws_in_a_headless_browser_without_console_messages() {
     let page = tmp.path().join("scene.html");
     let (code, stderr) = scene(SCENARIO, &page);
     assert_eq!(code, Some(0), "{stderr}");
-    let shot = tmp.path().join("shot.png");
-    let console = common::browser::run_headless(
-        &browser,
-        &page,
-        &[
-            "--window-size=1200,800".to_string(),
-            "--hide-scrollbars".to_string(),
-            format!("--screenshot={}", shot.display()),
-        ],
-    );
+    let (console, shot) = common::browser::screenshot(&browser, &page, 1200, 800);
     assert!(console.is_empty(), "{console:?}");
     // The canvas (900 × 640 CSS px from (16, ~75)) is drawn: many pixels differ from its
     // background, in several colours (detectors, cones, sources, labels).
-    let mut reader =
-        png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()))
-            .read_info()
-            .unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width, info.height), (1200, 800));
-    let channels = info.line_size / info.width as usize;
+    assert_eq!((shot.width, shot.height), (1200, 800));
     let mut drawn = 0usize;
     let mut colours = std::collections::BTreeSet::new();
     for y in 120..700 {
         for x in 30..900 {
-            let at = y * info.line_size + x * channels;
-            let rgb = [buf[at], buf[at + 1], buf[at + 2]];
+            let rgb = shot.pixel(x, y);
             if rgb != [0xfb, 0xfb, 0xfb] {
                 drawn += 1;
                 colours.insert(rgb.map(|c| c / 32));

@@ -69,3 +69,62 @@ pub fn run_headless(browser: &Path, page: &Path, args: &[String]) -> Vec<String>
         .map(str::to_string)
         .collect()
 }
+
+/// A screenshot decoded: width, height and RGB of every pixel.
+pub struct Screenshot {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    rgb: Vec<[u8; 3]>,
+}
+
+impl Screenshot {
+    /// The colour of pixel (x, y).
+    pub fn pixel(&self, x: usize, y: usize) -> [u8; 3] {
+        self.rgb[y * self.width as usize + x]
+    }
+}
+
+/// Runs the browser headless on `page` in a `width` × `height` window (no scroll bars) and
+/// returns the page's console lines ([`run_headless`]) and the screenshot, decoded.
+pub fn screenshot(
+    browser: &Path,
+    page: &Path,
+    width: u32,
+    height: u32,
+) -> (Vec<String>, Screenshot) {
+    let tmp = tempfile::tempdir().unwrap();
+    let shot = tmp.path().join("shot.png");
+    let console = run_headless(
+        browser,
+        page,
+        &[
+            format!("--window-size={width},{height}"),
+            "--hide-scrollbars".to_string(),
+            format!("--screenshot={}", shot.display()),
+        ],
+    );
+    let mut reader =
+        png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()))
+            .read_info()
+            .unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let channels = info.line_size / info.width as usize;
+    let rgb = (0..info.height as usize)
+        .flat_map(|y| (0..info.width as usize).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let at = y * info.line_size + x * channels;
+            [buf[at], buf[at + 1], buf[at + 2]]
+        })
+        .collect();
+    (
+        console,
+        Screenshot {
+            width: info.width,
+            height: info.height,
+            rgb,
+        },
+    )
+}

@@ -28,6 +28,16 @@ pub(crate) const HEADER: [&str; 12] = [
 pub fn csv(report: &Report) -> String {
     let mut w = writer();
     w.write_record(HEADER).expect("write to memory");
+    for record in records(report) {
+        w.write_record(&record).expect("write to memory");
+    }
+    finish(w)
+}
+
+/// The rows of [`csv`] without its header, as fields (the sweep summary prefixes them with the
+/// point and its parameters).
+pub(crate) fn records(report: &Report) -> Vec<Vec<String>> {
+    let mut out = Vec::new();
     for table in report.tables.iter().chain(&report.mtpm) {
         for row in &table.rows {
             for ((group, column), cell) in columns(table).zip(&row.cells) {
@@ -50,11 +60,11 @@ pub fn csv(report: &Report) -> String {
                     ]),
                     None => record.extend(std::iter::repeat_n(String::new(), 7)),
                 }
-                w.write_record(&record).expect("write to memory");
+                out.push(record);
             }
         }
     }
-    finish(w)
+    out
 }
 
 /// The ISO 5725-2 analyses, one row per parameter: `table, parameter, unit, groups,
@@ -84,13 +94,13 @@ pub(crate) fn significance(s: Significance) -> &'static str {
     }
 }
 
-fn writer() -> ::csv::Writer<Vec<u8>> {
+pub(crate) fn writer() -> ::csv::Writer<Vec<u8>> {
     ::csv::WriterBuilder::new()
         .terminator(::csv::Terminator::Any(b'\n'))
         .from_writer(Vec::new())
 }
 
-fn finish(w: ::csv::Writer<Vec<u8>>) -> String {
+pub(crate) fn finish(w: ::csv::Writer<Vec<u8>>) -> String {
     String::from_utf8(w.into_inner().expect("flush to memory")).expect("UTF-8 fields")
 }
 

@@ -14,7 +14,7 @@ use crate::evaluate::table::{ColumnGroup, Report, Table};
 /// The stylesheet: the paper's red!25 / blue!25 shades, kept when printing. For paper (A4 or
 /// Letter, portrait): smaller type, no page width limit, table heads repeated on every page, a
 /// row, a plot with its caption and a heading with what follows kept together.
-const STYLE: &str = "body{font-family:Helvetica,Arial,sans-serif;margin:2em auto;max-width:80em;color:#111;\
+pub(crate) const STYLE: &str = "body{font-family:Helvetica,Arial,sans-serif;margin:2em auto;max-width:80em;color:#111;\
 line-height:1.4;padding:0 1em}\
 h1{font-size:1.6em}h2{border-bottom:1px solid #999;margin-top:2em}\
 table{border-collapse:collapse;margin:0.6em 0 1em}th,td{border:1px solid #bbb;padding:0.25em 0.5em}\
@@ -45,14 +45,7 @@ const MAX_ISO_COLUMNS: usize = 7;
 /// inline SVG plot of trueness ± precision against noise level for every parameter, and the
 /// sections beyond the paper. The output depends only on `report` (byte-identical re-renders).
 pub fn html(report: &Report) -> String {
-    let mut s = String::new();
-    let title = format!("RSA accuracy report: {}", report.scenario);
-    let _ = write!(
-        s,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n<title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>{}</h1>\n",
-        esc(&title),
-        esc(&title)
-    );
+    let mut s = page_start(&format!("RSA accuracy report: {}", report.scenario));
     facts(&mut s, report);
     s.push_str("<h2>Tables as in the paper</h2>\n");
     let _ = writeln!(
@@ -113,6 +106,16 @@ pub fn html(report: &Report) -> String {
     iso5725(&mut s, report);
     s.push_str("</body>\n</html>\n");
     s
+}
+
+/// The start of a report page titled `title`: the document head with [`STYLE`], the body and
+/// the title as its heading.
+pub(crate) fn page_start(title: &str) -> String {
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n<title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>{}</h1>\n",
+        esc(title),
+        esc(title)
+    )
 }
 
 /// Program, data set, software, confidence, runs, scenario summary and excluded runs.
@@ -330,14 +333,31 @@ fn plots(s: &mut String, table: &Table, threshold: Option<f64>) {
     } else {
         svg::Axis::Noise
     };
-    let subject = subject(table);
-    s.push_str("<div class=\"plots\">\n");
-    for (i, (g, c)) in columns(table).enumerate() {
-        let cells: Vec<Option<&Cell>> = table
+    let x_axis = axis.x_axis();
+    plot_figures(s, table, &levels, &labels, &x_axis, threshold, &|i| {
+        table
             .rows
             .iter()
             .map(|r| r.cells.get(i).and_then(Option::as_ref))
-            .collect();
+            .collect()
+    });
+}
+
+/// One figure per column of `table` (its subject, group and parameter as title): the cells
+/// `cells_of(column index)` at `xs` labelled `labels` against `x_axis`, caption under each.
+pub(crate) fn plot_figures<'a>(
+    s: &mut String,
+    table: &Table,
+    xs: &[f64],
+    labels: &[String],
+    x_axis: &svg::XAxis,
+    threshold: Option<f64>,
+    cells_of: &dyn Fn(usize) -> Vec<Option<&'a Cell>>,
+) {
+    let subject = subject(table);
+    s.push_str("<div class=\"plots\">\n");
+    for (i, (g, c)) in columns(table).enumerate() {
+        let cells = cells_of(i);
         let title: Vec<&str> = [subject.as_deref(), Some(g.label.as_str()), Some(&c.label)]
             .into_iter()
             .flatten()
@@ -347,15 +367,15 @@ fn plots(s: &mut String, table: &Table, threshold: Option<f64>) {
         let what = match threshold {
             Some(t) => format!(
                 "mean ± precision against {}, dashed line at the {} mm threshold",
-                axis.noun(),
+                x_axis.noun,
                 super::number::trimmed(t, 6)
             ),
-            None => format!("trueness ± precision against {}", axis.noun()),
+            None => format!("trueness ± precision against {}", x_axis.noun),
         };
         let _ = writeln!(
             s,
             "<figure>{}<figcaption>{} ({}): {}</figcaption></figure>",
-            svg::plot(&title, &c.unit, &levels, &labels, axis, &cells, threshold),
+            svg::plot(&title, &c.unit, xs, labels, x_axis, &cells, threshold),
             esc(&title),
             esc(&c.unit),
             esc(&what)

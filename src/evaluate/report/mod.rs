@@ -24,6 +24,7 @@ mod markdown;
 mod number;
 pub mod pdf;
 mod svg;
+pub mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;

@@ -37,6 +37,14 @@ impl Axis {
         }
     }
 
+    /// The x axis of a plot against these levels.
+    pub(crate) fn x_axis(self) -> XAxis<'static> {
+        XAxis {
+            title_html: self.title_html(),
+            noun: self.noun(),
+        }
+    }
+
     fn title_html(self) -> &'static str {
         match self {
             Axis::Noise => {
@@ -50,9 +58,20 @@ impl Axis {
 /// Colour of a threshold line (MTPM).
 const ORANGE: &str = "#c05a00";
 
-/// A plot of one parameter: points at (noise level, T) with error bars ±P, a dashed zero line,
-/// tick labels on both axes, axis titles with `unit`. Positive cells are red up-triangles,
-/// negative cells blue down-triangles, others black circles; N = 1 cells have no bar.
+/// What the x axis of a plot shows, for any quantity: its title (HTML-escaped, may hold
+/// `<tspan>`) and its noun for the plot's accessible title.
+pub(crate) struct XAxis<'a> {
+    /// The axis title as SVG text content (escaped).
+    pub title_html: &'a str,
+    /// The quantity in a sentence, e.g. "noise level".
+    pub noun: &'a str,
+}
+
+/// A plot of one parameter: points at (`levels[i]`, T) against `axis` (noise level, exposure
+/// level or a swept parameter) with error bars ±P, a dashed zero line, `labels[i]` under the x
+/// axis, tick labels on the y axis, axis titles with `unit`. Positive cells are red
+/// up-triangles, negative cells blue down-triangles, others black circles; N = 1 cells have no
+/// bar.
 /// With `threshold` (a magnitude such as MTPM, never tested against zero) every point is a black
 /// circle and an orange dashed line marks the threshold, inside the y range.
 pub(crate) fn plot(
@@ -60,7 +79,7 @@ pub(crate) fn plot(
     unit: &str,
     levels: &[f64],
     labels: &[String],
-    axis: Axis,
+    axis: &XAxis,
     cells: &[Option<&Cell>],
     threshold: Option<f64>,
 ) -> String {
@@ -80,7 +99,7 @@ pub(crate) fn plot(
 role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         esc(&format!(
             "{title}: trueness ± precision ({unit}) against {}",
-            axis.noun()
+            axis.noun
         ))
     );
     let _ = write!(
@@ -163,7 +182,7 @@ role=\"img\" font-family=\"sans-serif\" font-size=\"11\"><title>{}</title>",
         "<text x=\"{:.2}\" y=\"{:.2}\" text-anchor=\"middle\">{}</text>",
         LEFT + (W - LEFT - RIGHT) / 2.0,
         H - 10.0,
-        axis.title_html()
+        axis.title_html
     );
     let (cx, cy) = (14.0, TOP + (H - TOP - BOTTOM) / 2.0);
     let _ = write!(
@@ -323,7 +342,7 @@ mod tests {
             "mm",
             &[0.0, 0.225, 0.45],
             &labels(),
-            Axis::Noise,
+            &Axis::Noise.x_axis(),
             &[Some(&pos), None, Some(&one)],
             None,
         );
@@ -334,7 +353,7 @@ mod tests {
                 "mm",
                 &[0.0, 0.225, 0.45],
                 &labels(),
-                Axis::Noise,
+                &Axis::Noise.x_axis(),
                 &[Some(&pos), None, Some(&one)],
                 None
             )
@@ -355,7 +374,7 @@ mod tests {
             "mm",
             &[0.0],
             &labels()[..1],
-            Axis::Noise,
+            &Axis::Noise.x_axis(),
             &[Some(&mtpm)],
             Some(0.2),
         );

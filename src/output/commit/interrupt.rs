@@ -43,11 +43,17 @@ pub fn interrupted_message() -> String {
 }
 
 /// Installs the handler of Ctrl-C (SIGINT) and SIGTERM: print [`interrupted_message`], exit 130.
-/// The output lock is released by the operating system as the process ends.
+/// The output lock is released by the operating system as the process ends. Installed once per
+/// process: later calls (a sweep runs several outputs) return the first call's result.
 pub fn install() -> Result<(), String> {
-    ctrlc::set_handler(|| {
-        eprintln!("\n{}", interrupted_message());
-        std::process::exit(130);
-    })
-    .map_err(|e| e.to_string())
+    static INSTALLED: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    INSTALLED
+        .get_or_init(|| {
+            ctrlc::set_handler(|| {
+                eprintln!("\n{}", interrupted_message());
+                std::process::exit(130);
+            })
+            .map_err(|e| e.to_string())
+        })
+        .clone()
 }

@@ -1,0 +1,20 @@
+//! Parameter sweeps: one base scenario, some of its values varied (grid or zip), one standalone
+//! scenario per point, each run by the main command's own entry points into its own output
+//! folder, and a summary of every point's evaluation against the varied parameter.
+//!
+//! The flow: [`prepare`] reads the sweep file and the base scenario and builds and checks every
+//! point (nothing written; errors name the sweep file's line); [`claim`] takes the sweep folder
+//! (new, or the same sweep resumed); [`SweepFolder::write_points`] writes the point scenarios;
+//! the caller runs each pending point as `rsasim POINT.toml --out DIR/<id>` would; after
+//! `reconstruct` and `evaluate` per point, [`summary::summary`] and [`summary::write`] make the
+//! summary. A point is a scenario file plus an output folder, so running one point can be split
+//! further (sharded) without the sweep knowing.
+
+pub mod file;
+pub mod folder;
+pub mod points;
+pub mod prepare;
+pub mod summary;
+
+pub use folder::{Index, SweepFolder, claim, is_sweep_folder, read_index};
+pub use prepare::{Sweep, prepare};
