@@ -241,6 +241,16 @@ pub fn simulate(
         files.extend(r.images);
         truth_files.extend(r.truth);
     }
+    if let Some(design) = &plan.loaded.scenario.study {
+        // The study's design and migration truth: truth, so in the truth folder of a blind layout.
+        let study = output::study::study_truth(&plan.loaded.scenario, design);
+        let study_root = truth_root.unwrap_or(root);
+        truth_files.push(manifest_entry(
+            study_root,
+            &study_root.join("study.json"),
+            &json_bytes(&study),
+        )?);
+    }
     let mut manifest = new_manifest(plan, Vec::new());
     match truth_root {
         None => {
@@ -466,12 +476,16 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
 
 /// A resolved scenario as TOML. In attenuation mode the binary mode's default `noise_levels`
 /// are left out (the mode refuses them); binary mode's text is the records' own serialisation.
+/// A study's text has no `[protocol]` (the study refuses one).
 fn scenario_toml(resolved: &Scenario) -> String {
-    if !resolved.imaging.is_attenuation() {
+    if !resolved.imaging.is_attenuation() && resolved.study.is_none() {
         return toml::to_string_pretty(resolved).expect("scenario serialises");
     }
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
     drop_binary_levels(resolved, &mut value);
+    if resolved.study.is_some() {
+        value.remove("protocol");
+    }
     toml::to_string_pretty(&value).expect("TOML tables serialise")
 }
 
@@ -492,6 +506,8 @@ pub fn nominal_scenario_text(resolved: &Scenario) -> String {
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
     drop_binary_levels(resolved, &mut value);
     value.remove("seed");
+    // A study's exams carry the prescribed migration and its failures: truth.
+    value.remove("study");
     for list in ["sources", "detectors", "phantoms"] {
         if let Some(toml::Value::Array(items)) = value.get_mut(list) {
             for item in items {
