@@ -719,6 +719,12 @@ fn write_run(
                 let png = output::preview::preview_png(&pixels, w, h, PREVIEW_MAX_SIDE_PX);
                 files.push(manifest_entry(root, &dir.join(&name), &png)?);
             }
+            // Binary mode: a bead is occluded when its disc shares a pixel with the shadow of a
+            // solid (mesh, cylinder) of the exposure ([`trace::bead_occluded`]).
+            let occluders: Vec<&Object> = objects
+                .iter()
+                .filter(|o| !matches!(o, Object::Sphere { .. }))
+                .collect();
             let markers = in_beam
                 .iter()
                 .flat_map(|&pi| {
@@ -740,7 +746,16 @@ fn write_run(
                         id: m.id.clone(),
                         pixel: [uv.x, uv.y],
                         inside: frame.contains_pixel(uv),
-                        occluded: seen.map(|b| b.occluded),
+                        occluded: match &visibility {
+                            Some(_) => seen.map(|b| b.occluded),
+                            None => Some(trace::bead_occluded(
+                                &frame,
+                                source,
+                                m.position_mm,
+                                m.diameter_mm / 2.0,
+                                &occluders,
+                            )),
+                        },
                         metal_fraction: seen.map(|b| b.metal_fraction),
                     }
                 })

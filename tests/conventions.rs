@@ -234,3 +234,18 @@ fn the_exported_camera_is_the_documented_one() {
         assert!((row - axis).length() < 1e-12);
     }
 }
+
+#[test]
+fn study_stream_labels_and_run_ids_are_the_documented_ones() {
+    states("`rsasim/study/v1/{seed}/{patient}/{exam}`");
+    states("`rsasim/study/v1/{seed}/{patient}`");
+    states("`{patient}-e{i}-{exam}`");
+    assert_eq!(
+        rsasim::expand::study::exam_stream_label(42, 2, "3m"),
+        "rsasim/study/v1/42/p03/3m"
+    );
+    assert_eq!(
+        rsasim::expand::study::patient_stream_label(42, 0),
+        "rsasim/study/v1/42/p01"
+    );
+}

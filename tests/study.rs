@@ -266,6 +266,7 @@ fn loose_and_missing_markers_are_in_the_truth_and_in_study_json() {
     let study = read_json(&out.join("study.json"));
     let planned_k2 = DVec3::new(0.0, 36.0, 2.0);
     let displacement = DVec3::new(0.0, 0.6, -0.3);
+    let mut occlusion = [0usize; 2];
     for patient in study["patients"].as_array().unwrap() {
         let id = patient["id"].as_str().unwrap();
         let runs = patient["runs"].as_object().unwrap();
@@ -300,8 +301,12 @@ fn loose_and_missing_markers_are_in_the_truth_and_in_study_json() {
             } else {
                 assert_eq!(ids, ["K1", "K2", "K3", "K4", "K5"], "{exam}");
             }
-            // Every image's projected markers list the same beads.
+            // Every image's projected markers list the same beads, each with its binary-mode
+            // occlusion (the disc over the component's shadow).
             for image in truth["images"].as_array().unwrap() {
+                for m in image["markers"].as_array().unwrap() {
+                    occlusion[usize::from(m["occluded"].as_bool().unwrap())] += 1;
+                }
                 let projected = image["markers"]
                     .as_array()
                     .unwrap()
@@ -320,6 +325,11 @@ fn loose_and_missing_markers_are_in_the_truth_and_in_study_json() {
             assert!((local - expected).length() < 1e-9, "{id} {exam}: {local}");
         }
     }
+    // Most beads are clear of the component; the cage beads behind it are not.
+    assert!(
+        occlusion[0] > occlusion[1] && occlusion[1] > 0,
+        "{occlusion:?}"
+    );
 }
 
 /// The shipped study, expanded in memory: the sign conventions the README states.

@@ -258,3 +258,76 @@ pub fn expand_exam(
         },
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::ExamSpec;
+
+    fn exam(id: &str, double_of: Option<&str>, t: Option<[f64; 3]>) -> ExamSpec {
+        ExamSpec {
+            id: id.into(),
+            days: 0,
+            reference: id == "postop",
+            double_of: double_of.map(Into::into),
+            translation_mm: t,
+            rotation_deg: t,
+        }
+    }
+
+    fn design(exams: Vec<ExamSpec>) -> StudyDesign {
+        StudyDesign {
+            patients: 1,
+            noise_level: 0.0,
+            exposure_factor: None,
+            migration_spread: 0.0,
+            segments: vec![],
+            exams,
+            loose_markers: vec![],
+            missing_markers: vec![],
+        }
+    }
+
+    #[test]
+    fn run_ids_sort_in_exam_order_with_as_many_digits_as_the_last_index_needs() {
+        let five = design(
+            ["postop", "double", "3m", "1y", "2y"]
+                .iter()
+                .map(|id| exam(id, None, None))
+                .collect(),
+        );
+        let ids: Vec<String> = (0..5).map(|i| exam_run_id(&five, 6, i)).collect();
+        assert_eq!(ids[0], "p07-e0-postop");
+        assert_eq!(ids[4], "p07-e4-2y");
+        let mut sorted = ids.clone();
+        sorted.sort();
+        assert_eq!(sorted, ids);
+        let eleven = design(
+            (0..11)
+                .map(|i| exam(&format!("x{i}"), None, None))
+                .collect(),
+        );
+        assert_eq!(exam_run_id(&eleven, 0, 3), "p01-e03-x3");
+        assert_eq!(patient_id(119), "p120");
+    }
+
+    #[test]
+    fn a_double_has_the_migration_of_the_exam_it_repeats_about_the_centre() {
+        let d = design(vec![
+            exam("postop", None, None),
+            exam("1y", None, Some([0.3, -0.2, 0.1])),
+            exam("1y-double", Some("1y"), None),
+            exam("1y-triple", Some("1y-double"), None),
+        ]);
+        assert_eq!(d.migration_exam(3), 1);
+        let centre = DVec3::new(10.0, -20.0, 5.0);
+        let m = prescribed_motion(&d, 3, 2.0, centre);
+        // The centre moves by the translation times the factor; the rotation is about it.
+        assert!((m.to_world(centre) - centre - DVec3::new(0.6, -0.4, 0.2)).length() < 1e-12);
+        let angles = crate::geometry::euler_xyz_deg(&m.rotation);
+        for (a, want) in angles.iter().zip([0.6, -0.4, 0.2]) {
+            assert!((a - want).abs() < 1e-12, "{angles:?}");
+        }
+        assert_eq!(prescribed_motion(&d, 0, 2.0, centre), Pose::IDENTITY);
+    }
+}
