@@ -315,10 +315,10 @@ pub enum Command {
         #[command(flatten)]
         allow: AllowArgs,
     },
-    /// Print a JSON Schema: scenario (default), truth, measured or manifest.
+    /// Print a JSON Schema: scenario (default), truth, measured, manifest or study.
     Schema {
         /// Which schema to print.
-        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest"])]
+        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest", "study"])]
         name: String,
         /// Instead of printing, write every schema as <DIR>/<name>.schema.json.
         #[arg(long, value_name = "DIR")]

@@ -73,7 +73,7 @@ impl Cost {
     /// Estimates the cost of `s` with its built phantoms, for `threads` worker threads.
     pub fn estimate(s: &Scenario, models: &[PhantomModel], threads: usize) -> Cost {
         let threads = threads.max(1) as u64;
-        let runs = s.levels().len() as u64 * u64::from(s.protocol.runs_per_level);
+        let runs = s.run_count();
         let per_run_images = (s.exposures.len() * s.detectors.len()) as u64;
         let images = runs.saturating_mul(per_run_images);
         let image_bytes: Vec<(ImageFormat, u64)> = s
@@ -303,18 +303,30 @@ impl Cost {
             return out;
         }
         if self.runs > MAX_RUNS {
-            out.push(
-                loc.error(
-                    root.key("protocol").key("runs_per_level"),
-                    format!(
-                        "the protocol has {} runs ({} levels × {} runs per level), more than the cap of {MAX_RUNS}",
-                        self.runs,
-                        s.levels().len(),
-                        s.protocol.runs_per_level
-                    ),
-                )
-                .with_help(override_help("check runs_per_level for a typo (the paper uses 20)")),
-            );
+            out.push(match &s.study {
+                Some(d) => loc
+                    .error(
+                        root.key("study").key("patients"),
+                        format!(
+                            "the study has {} runs ({} patients × {} exams), more than the cap of {MAX_RUNS}",
+                            self.runs,
+                            d.patients,
+                            d.exams.len()
+                        ),
+                    )
+                    .with_help(override_help("check patients for a typo")),
+                None => loc
+                    .error(
+                        root.key("protocol").key("runs_per_level"),
+                        format!(
+                            "the protocol has {} runs ({} levels × {} runs per level), more than the cap of {MAX_RUNS}",
+                            self.runs,
+                            s.levels().len(),
+                            s.protocol.runs_per_level
+                        ),
+                    )
+                    .with_help(override_help("check runs_per_level for a typo (the paper uses 20)")),
+            });
         }
         if self.total_bytes > MAX_TOTAL_BYTES {
             out.push(

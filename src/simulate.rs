@@ -267,6 +267,16 @@ pub fn simulate(
         files.extend(r.images);
         truth_files.extend(r.truth);
     }
+    if let Some(design) = &plan.loaded.scenario.study {
+        // The study's design and migration truth: truth, so in the truth folder of a blind layout.
+        let study = output::study::study_truth(&plan.loaded.scenario, design);
+        let study_root = truth_root.unwrap_or(root);
+        truth_files.push(manifest_entry(
+            study_root,
+            &study_root.join("study.json"),
+            &json_bytes(&study),
+        )?);
+    }
     let mut manifest = new_manifest(plan, Vec::new());
     match truth_root {
         None => {
@@ -514,12 +524,16 @@ fn write_phantoms(plan: &Plan, root: &Path, nominal: bool) -> std::io::Result<Ve
 
 /// A resolved scenario as TOML. In attenuation mode the binary mode's default `noise_levels`
 /// are left out (the mode refuses them); binary mode's text is the records' own serialisation.
+/// A study's text has no `[protocol]` (the study refuses one).
 fn scenario_toml(resolved: &Scenario) -> String {
-    if !resolved.imaging.is_attenuation() {
+    if !resolved.imaging.is_attenuation() && resolved.study.is_none() {
         return toml::to_string_pretty(resolved).expect("scenario serialises");
     }
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
     drop_binary_levels(resolved, &mut value);
+    if resolved.study.is_some() {
+        value.remove("protocol");
+    }
     toml::to_string_pretty(&value).expect("TOML tables serialise")
 }
 
@@ -540,6 +554,8 @@ pub fn nominal_scenario_text(resolved: &Scenario) -> String {
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
     drop_binary_levels(resolved, &mut value);
     value.remove("seed");
+    // A study's exams carry the prescribed migration and its failures: truth.
+    value.remove("study");
     for list in ["sources", "detectors", "phantoms"] {
         if let Some(toml::Value::Array(items)) = value.get_mut(list) {
             for item in items {
@@ -751,6 +767,12 @@ fn write_run(
                 let png = output::preview::preview_png(&pixels, w, h, PREVIEW_MAX_SIDE_PX);
                 files.push(manifest_entry(root, &dir.join(&name), &png)?);
             }
+            // Binary mode: a bead is occluded when its disc shares a pixel with the shadow of a
+            // solid (mesh, cylinder) of the exposure ([`trace::bead_occluded`]).
+            let occluders: Vec<&Object> = objects
+                .iter()
+                .filter(|o| !matches!(o, Object::Sphere { .. }))
+                .collect();
             let markers = in_beam
                 .iter()
                 .flat_map(|&pi| {
@@ -772,7 +794,16 @@ fn write_run(
                         id: m.id.clone(),
                         pixel: [uv.x, uv.y],
                         inside: frame.contains_pixel(uv),
-                        occluded: seen.map(|b| b.occluded),
+                        occluded: match &visibility {
+                            Some(_) => seen.map(|b| b.occluded),
+                            None => Some(trace::bead_occluded(
+                                &frame,
+                                source,
+                                m.position_mm,
+                                m.diameter_mm / 2.0,
+                                &occluders,
+                            )),
+                        },
                         metal_fraction: seen.map(|b| b.metal_fraction),
                     }
                 })

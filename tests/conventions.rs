@@ -326,3 +326,18 @@ fn sweep_points_are_ordered_and_named_as_documented() {
     let order = rsasim::sweep::points::choices(&record);
     assert_eq!(order[..4], [vec![0, 0], vec![0, 1], vec![0, 2], vec![1, 0]]);
 }
+
+#[test]
+fn study_stream_labels_and_run_ids_are_the_documented_ones() {
+    states("`rsasim/study/v1/{seed}/{patient}/{exam}`");
+    states("`rsasim/study/v1/{seed}/{patient}`");
+    states("`{patient}-e{i}-{exam}`");
+    assert_eq!(
+        rsasim::expand::study::exam_stream_label(42, 2, "3m"),
+        "rsasim/study/v1/42/p03/3m"
+    );
+    assert_eq!(
+        rsasim::expand::study::patient_stream_label(42, 0),
+        "rsasim/study/v1/42/p01"
+    );
+}

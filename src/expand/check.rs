@@ -18,7 +18,7 @@ use crate::phantom::PhantomModel;
 use crate::scenario::{LoadedScenario, PhantomShape};
 use crate::trace::MeshBvh;
 
-use super::{Run, expand_run};
+use super::{Run, run_at};
 
 /// The first run (in protocol order) where something happened, and how often it happened.
 #[derive(Debug, Clone, Default)]
@@ -109,15 +109,12 @@ pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel]) -> Vec<D
         .iter()
         .map(|m| m.mesh.as_ref().map(|mesh| MeshBvh::new(mesh)))
         .collect();
-    let per_level = u64::from(s.protocol.runs_per_level);
-    let levels = s.levels();
-    let total = levels.len() as u64 * per_level;
+    let total = s.run_count();
     let detectors = s.detectors.len();
     let findings = (0..total)
         .into_par_iter()
         .map(|i| {
-            let (n, r) = (i / per_level.max(1), (i % per_level.max(1)) as u32);
-            let run = expand_run(s, models, n as u32, levels[n as usize], r);
+            let run = run_at(s, models, i);
             check_run(loaded, models, &bvhs, &run, i)
         })
         .reduce(|| Findings::new(models, detectors), Findings::merge);
@@ -207,7 +204,11 @@ fn check_run(
             let frame = dstate.frame();
             let source = run.source_of(dstate);
             for &pi in &in_beam {
-                for (k, bead) in run.phantoms[pi].markers.iter().enumerate() {
+                for bead in &run.phantoms[pi].markers {
+                    // A study run may leave a patient's missing beads out: tally by id.
+                    let Some(k) = models[pi].markers.iter().position(|m| m.id == bead.id) else {
+                        continue;
+                    };
                     let tally = &mut f.beads[pi][k];
                     tally[0] += 1;
                     let Some(uv) = frame

@@ -17,6 +17,7 @@
 
 mod check;
 mod run;
+pub mod study;
 
 pub use check::check_geometry;
 pub use run::*;
@@ -39,20 +40,34 @@ pub fn run_id(level_index: u32, run_index: u32) -> String {
     format!("n{level_index}-r{run_index:02}")
 }
 
-/// Every run of the protocol, level by level, run by run.
+/// Every run of the scenario: the protocol level by level, run by run; or a study patient by
+/// patient, exam by exam.
 pub fn expand(s: &Scenario, models: &[PhantomModel]) -> Vec<Run> {
     runs(s, models).collect()
 }
 
-/// Every run of the protocol in the order of [`expand`], each built only when asked for: memory
-/// stays flat however many runs the protocol has.
+/// Every run in the order of [`expand`], each built only when asked for: memory stays flat
+/// however many runs the protocol has.
 pub fn runs<'a>(s: &'a Scenario, models: &'a [PhantomModel]) -> impl Iterator<Item = Run> + 'a {
-    s.levels()
-        .into_iter()
-        .enumerate()
-        .flat_map(move |(n, level)| {
-            (0..s.protocol.runs_per_level).map(move |r| expand_run(s, models, n as u32, level, r))
-        })
+    (0..s.run_count()).map(move |i| run_at(s, models, i))
+}
+
+/// Run `index` (0-based, in the order of [`expand`]) of the protocol or the study.
+pub fn run_at(s: &Scenario, models: &[PhantomModel], index: u64) -> Run {
+    if let Some(d) = &s.study {
+        let exams = d.exams.len().max(1) as u64;
+        return study::expand_exam(
+            s,
+            d,
+            models,
+            (index / exams) as u32,
+            (index % exams) as usize,
+        );
+    }
+    let levels = s.levels();
+    let per_level = u64::from(s.protocol.runs_per_level).max(1);
+    let n = (index / per_level) as usize;
+    expand_run(s, models, n as u32, levels[n], (index % per_level) as u32)
 }
 
 /// The nominal set-up as a run: every random range set to zero (no offsets drawn), so its
@@ -85,30 +100,81 @@ pub fn expand_run(
     run_index: u32,
 ) -> Run {
     let label = geometry_stream_label(s.seed, level_index, run_index);
-    let mut rng = random::stream(&label);
+    let drawn = draw(s, &mut random::stream(&label));
+    let phantoms = fixed_poses(s, &drawn.phantoms);
+    assemble(
+        s,
+        models,
+        RunHeader {
+            id: run_id(level_index, run_index),
+            level_index,
+            level,
+            run_index,
+            geometry_stream: label,
+        },
+        drawn,
+        &phantoms,
+        &|_, b| Some(b.position_mm),
+    )
+}
 
-    let sources: Vec<(String, DVec3)> = s
+/// What names a run and sets its noise.
+struct RunHeader {
+    id: String,
+    level_index: u32,
+    level: Level,
+    run_index: u32,
+    geometry_stream: String,
+}
+
+/// The draws of one geometry stream, in the scanner frame: sources, detectors, and every
+/// phantom's own pose (before `fixed_to` is resolved).
+struct Drawn {
+    sources: Vec<(String, DVec3)>,
+    detectors: Vec<Pose>,
+    phantoms: Vec<Pose>,
+}
+
+/// Takes the draws of a run from `rng` in file order (see "Seeds" above).
+fn draw(s: &Scenario, rng: &mut ChaCha8Rng) -> Drawn {
+    let sources = s
         .sources
         .iter()
         .map(|src| {
             (
                 src.id.clone(),
-                DVec3::from_array(src.position_mm) + offset(&mut rng, src.randomize.position_mm),
+                DVec3::from_array(src.position_mm) + offset(rng, src.randomize.position_mm),
             )
         })
         .collect();
-    let detectors: Vec<Pose> = s
+    let detectors = s
         .detectors
         .iter()
-        .map(|d| draw_pose(&mut rng, d.position_mm, d.rotation_deg, &d.randomize))
+        .map(|d| draw_pose(rng, d.position_mm, d.rotation_deg, &d.randomize))
         .collect();
-    let drawn: Vec<Pose> = s
+    let phantoms = s
         .phantoms
         .iter()
-        .map(|p| draw_pose(&mut rng, p.position_mm, p.rotation_deg, &p.randomize))
+        .map(|p| draw_pose(rng, p.position_mm, p.rotation_deg, &p.randomize))
         .collect();
-    let phantoms = fixed_poses(s, drawn);
+    Drawn {
+        sources,
+        detectors,
+        phantoms,
+    }
+}
 
+/// The run with the drawn sources and detectors and the phantoms at `phantoms` (scanner frame,
+/// `fixed_to` resolved), all re-expressed in the box frame. `bead(phantom index, bead)` gives a
+/// bead's centre in its phantom's local frame, or `None` for a bead the run leaves out.
+fn assemble(
+    s: &Scenario,
+    models: &[PhantomModel],
+    header: RunHeader,
+    drawn: Drawn,
+    phantoms: &[Pose],
+    bead: &dyn Fn(usize, &crate::phantom::Marker) -> Option<DVec3>,
+) -> Run {
     let box_pose = s
         .phantoms
         .iter()
@@ -117,14 +183,15 @@ pub fn expand_run(
     let to_box = box_pose.inverse();
 
     Run {
-        id: run_id(level_index, run_index),
-        noise_level_index: level_index,
-        noise_level: level.noise_level,
-        exposure_factor: level.exposure_factor,
-        run_index,
-        geometry_stream: label,
+        id: header.id,
+        noise_level_index: header.level_index,
+        noise_level: header.level.noise_level,
+        exposure_factor: header.level.exposure_factor,
+        run_index: header.run_index,
+        geometry_stream: header.geometry_stream,
         box_pose_in_scanner: box_pose,
-        sources: sources
+        sources: drawn
+            .sources
             .into_iter()
             .map(|(id, p)| SourceState {
                 id,
@@ -134,7 +201,7 @@ pub fn expand_run(
         detectors: s
             .detectors
             .iter()
-            .zip(&detectors)
+            .zip(&drawn.detectors)
             .map(|(d, pose)| {
                 let pose = to_box.compose(pose);
                 DetectorState {
@@ -150,8 +217,9 @@ pub fn expand_run(
             .collect(),
         phantoms: models
             .iter()
-            .zip(&phantoms)
-            .map(|(m, pose)| {
+            .zip(phantoms)
+            .enumerate()
+            .map(|(pi, (m, pose))| {
                 let pose = to_box.compose(pose);
                 PhantomState {
                     id: m.id.clone(),
@@ -161,10 +229,12 @@ pub fn expand_run(
                     markers: m
                         .markers
                         .iter()
-                        .map(|b| MarkerState {
-                            id: b.id.clone(),
-                            position_mm: pose.to_world(b.position_mm),
-                            diameter_mm: b.diameter_mm,
+                        .filter_map(|b| {
+                            bead(pi, b).map(|local| MarkerState {
+                                id: b.id.clone(),
+                                position_mm: pose.to_world(local),
+                                diameter_mm: b.diameter_mm,
+                            })
                         })
                         .collect(),
                 }
@@ -202,7 +272,7 @@ fn draw_pose(
 /// Poses of phantoms fixed to another (`fixed_to`): the parent's pose composed with the
 /// phantom's nominal pose in the parent's frame (its own draws are taken and ignored, so the
 /// stream stays aligned). Validation guarantees the `fixed_to` chains end without a cycle.
-fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
+fn fixed_poses(s: &Scenario, drawn: &[Pose]) -> Vec<Pose> {
     let mut poses: Vec<Option<Pose>> = vec![None; drawn.len()];
     fn resolve(
         s: &Scenario,
@@ -233,7 +303,7 @@ fn fixed_poses(s: &Scenario, drawn: Vec<Pose>) -> Vec<Pose> {
         pose
     }
     for i in 0..drawn.len() {
-        resolve(s, &drawn, &mut poses, i, 0);
+        resolve(s, drawn, &mut poses, i, 0);
     }
     poses
         .into_iter()

@@ -83,6 +83,9 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
             "scenario.toml    the scenario as run (defaults resolved, mesh paths into phantoms/)\n";
     }
     t += "phantoms/        what a real RSA user has: bead tables (CSV) and model meshes\n";
+    if s.study.is_some() && !blind {
+        t += "study.json       the clinical study: which run is which exam of which patient, and the true migration\n";
+    }
     t += "runs/<run-id>/   one folder per run\n";
     if !blind {
         t += "  truth.json     exact poses of sources, detectors and phantoms; beads in 3D and in pixels\n";
@@ -228,6 +231,9 @@ fn truth_readme(s: &Scenario, runs: &[Run]) -> String {
     t += "manifest.json      program and build, scenario SHA-256, seed, the images folder's binding, every file with its SHA-256\n";
     t += "scenario.toml      the full scenario as run, with its seed and random ranges\n";
     t += "phantoms/          the phantom files the scenario reads\n";
+    if s.study.is_some() {
+        t += "study.json         the clinical study: which run is which exam of which patient, and the true migration\n";
+    }
     t += "runs/<run-id>/truth.json   exact poses of sources, detectors and phantoms; beads in 3D and in pixels\n";
     t += "```\n\n";
     t += "Score the software's results with `rsasim evaluate IMAGES_FOLDER --truth THIS_FOLDER`, \

@@ -63,7 +63,8 @@ pub fn build() -> Build {
 /// `<version> (unknown build)` without git.
 pub const VERSION_LINE: &str = env!("RSASIM_VERSION_LINE");
 
-/// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`.
+/// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`,
+/// `study`.
 pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
     vec![
         ("scenario", crate::scenario::json_schema()),
@@ -75,6 +76,10 @@ pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
         (
             "manifest",
             schemars::schema_for!(Manifest).as_value().clone(),
+        ),
+        (
+            "study",
+            schemars::schema_for!(study::Study).as_value().clone(),
         ),
     ]
 }

@@ -23,7 +23,11 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::Pose;
+use glam::DVec3;
+
+use crate::expand::study;
+use crate::geometry::{Pose, euler_xyz_deg};
+use crate::scenario::{Scenario, StudyDesign};
 
 /// The format tag of study files written by this version.
 pub const STUDY_FORMAT: &str = "rsasim-study/1";
@@ -125,4 +129,122 @@ pub struct LooseMarker {
     pub bead: String,
     /// Its displacement in the segment's local frame, mm.
     pub displacement_mm: [f64; 3],
+}
+
+impl MigrationTruth {
+    /// The migration numbers of the rigid motion `motion` (`M`, in the anatomical frame) of an
+    /// implant whose MTPM points are `points` (anatomical frame at the reference exam): the
+    /// motion of their centroid, the X-Y-Z Euler angles of the rotation, the largest point motion.
+    pub fn from_motion(exam: &str, segment: &str, motion: &Pose, points: &[DVec3]) -> Self {
+        let sum: DVec3 = points.iter().copied().sum();
+        let centre = sum / points.len().max(1) as f64;
+        let mtpm_mm = points
+            .iter()
+            .map(|&p| (motion.to_world(p) - p).length())
+            .fold(0.0, f64::max);
+        MigrationTruth {
+            exam: exam.to_string(),
+            segment: segment.to_string(),
+            // `+ 0.0` writes a zero as 0.0, never -0.0.
+            translation_mm: (motion.to_world(centre) - centre)
+                .to_array()
+                .map(|x| x + 0.0),
+            rotation_deg: euler_xyz_deg(&motion.rotation).map(|x| x + 0.0),
+            mtpm_mm,
+        }
+    }
+}
+
+/// The design and migration truth of the study of scenario `s` (which must have one).
+pub fn study_truth(s: &Scenario, d: &StudyDesign) -> Study {
+    let frames = study::frames(s, d);
+    let segments = d
+        .segments
+        .iter()
+        .map(|g| {
+            let implant = frames
+                .implants
+                .iter()
+                .find(|f| s.phantoms[f.phantom].id == g.phantom);
+            StudySegment {
+                id: g.phantom.clone(),
+                role: g.role.name().to_string(),
+                markers: study::segment_markers(s, g),
+                mtpm_points_mm: implant.map_or_else(Vec::new, |f| {
+                    f.mtpm_points_local.iter().map(|p| p.to_array()).collect()
+                }),
+            }
+        })
+        .collect();
+    let exams = d
+        .exams
+        .iter()
+        .map(|e| StudyExam {
+            id: e.id.clone(),
+            days: e.days,
+            reference: e.reference,
+            double_of: e.double_of.clone(),
+        })
+        .collect();
+    let patients = (0..d.patients)
+        .map(|p| {
+            let factor = study::migration_factor(s, d, p);
+            let runs = d
+                .exams
+                .iter()
+                .enumerate()
+                .map(|(i, e)| (e.id.clone(), study::exam_run_id(d, p, i)))
+                .collect();
+            let mut migration = Vec::new();
+            for (i, e) in d.exams.iter().enumerate().filter(|(_, e)| !e.reference) {
+                for f in &frames.implants {
+                    let motion = study::prescribed_motion(d, i, factor, f.centre);
+                    let points: Vec<DVec3> = f
+                        .mtpm_points_local
+                        .iter()
+                        .map(|&q| f.in_anatomical.to_world(q))
+                        .collect();
+                    migration.push(MigrationTruth::from_motion(
+                        &e.id,
+                        &s.phantoms[f.phantom].id,
+                        &motion,
+                        &points,
+                    ));
+                }
+            }
+            let loose_markers = d
+                .exams
+                .iter()
+                .enumerate()
+                .flat_map(|(i, e)| {
+                    d.loose_markers.iter().filter_map(move |l| {
+                        study::loose_displacement(d, p, i, &l.phantom, &l.bead).map(|v| {
+                            LooseMarker {
+                                exam: e.id.clone(),
+                                segment: l.phantom.clone(),
+                                bead: l.bead.clone(),
+                                displacement_mm: v.to_array(),
+                            }
+                        })
+                    })
+                })
+                .collect();
+            StudyPatient {
+                id: study::patient_id(p),
+                runs,
+                migration,
+                loose_markers,
+            }
+        })
+        .collect();
+    Study {
+        format: STUDY_FORMAT.into(),
+        program: super::program(),
+        scenario: s.name.clone(),
+        segments,
+        anatomical_frame: frames.anatomical,
+        rotation_order: "xyz".into(),
+        exams,
+        patients,
+    }
 }

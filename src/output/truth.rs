@@ -69,8 +69,11 @@ pub struct ProjectedMarker {
     pub pixel: [f64; 2],
     /// Whether the projected centre falls on the active area.
     pub inside: bool,
-    /// Attenuation mode: whether the ray to the pixel under the projected centre crosses metal
-    /// (a volume of density ≥ 4 g/cm³, beads aside), i.e. the bead is seen over the implant.
+    /// Whether the bead is hidden by an implant. Attenuation mode: the ray to the pixel under the
+    /// projected centre crosses metal (a volume of density ≥ 4 g/cm³, beads aside), i.e. the bead
+    /// is seen over the implant. Binary mode: the bead's disc shares a pixel with the shadow of a
+    /// solid of the exposure (a mesh or cylinder): some pixel centre whose ray crosses the bead
+    /// also crosses that solid, so the bead merges with its shadow.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub occluded: Option<bool>,
     /// Attenuation mode: the fraction of the bead's shadow pixels whose ray also crosses metal.

@@ -11,6 +11,8 @@ mod lengths;
 mod load;
 mod magnitudes;
 mod model;
+mod study;
+mod study_check;
 mod validate;
 
 pub use load::{LoadedScenario, from_text, hex, load};
@@ -35,6 +37,30 @@ impl Scenario {
             None => crate::material::by_name(name).map_or(0.0, |m| m.density_g_cm3),
         };
         density >= crate::material::METAL_DENSITY_G_CM3
+    }
+
+    /// Number of runs: levels × runs per level for the protocol, patients × exams for a study.
+    pub fn run_count(&self) -> u64 {
+        match &self.study {
+            Some(d) => u64::from(d.patients) * d.exams.len() as u64,
+            None => self.levels().len() as u64 * u64::from(self.protocol.runs_per_level),
+        }
+    }
+
+    /// The one level of every exam of a study: `study.noise_level` in binary mode,
+    /// `study.exposure_factor` (default 1) in attenuation mode.
+    pub fn study_level(&self, d: &StudyDesign) -> Level {
+        if self.imaging.is_attenuation() {
+            Level {
+                noise_level: 0.0,
+                exposure_factor: Some(d.exposure_factor.unwrap_or(1.0)),
+            }
+        } else {
+            Level {
+                noise_level: d.noise_level,
+                exposure_factor: None,
+            }
+        }
     }
 
     /// The protocol's levels in order: `noise_levels` in binary mode, `exposure_levels`

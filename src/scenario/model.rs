@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 pub use super::dicom::*;
 pub use super::imaging::*;
+pub use super::study::*;
 
 /// A whole simulation: the radiological set-up, the phantoms, the protocol and the outputs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -30,6 +31,11 @@ pub struct Scenario {
     /// Noise levels and runs per level. Default: the paper's 5 levels × 20 runs.
     #[serde(default)]
     pub protocol: Protocol,
+    /// A clinical RSA study instead of the protocol: segments, exams with the implant's
+    /// prescribed migration, patients. Each exam of each patient is one run. Default: none (the
+    /// protocol's runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub study: Option<StudyDesign>,
     /// Image formats and compression. Default: 16-bit TIFF (Deflate) and 32-bit float EXR.
     #[serde(default)]
     pub output: OutputOptions,

@@ -59,6 +59,9 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     let root = KeyPath::root();
     v.id(&root.key("name"), &s.name, "the scenario name");
     v.protocol(&s.protocol);
+    if let Some(study) = &s.study {
+        v.study(s, study);
+    }
     if s.output.formats.is_empty() {
         v.err(
             root.key("output").key("formats"),
@@ -154,24 +157,29 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     v.out
 }
 
-fn quoted(ids: &[&str]) -> String {
+pub(super) fn quoted(ids: &[&str]) -> String {
     ids.iter()
         .map(|s| format!("`{s}`"))
         .collect::<Vec<_>>()
         .join(", ")
 }
 
-struct Checker<'a> {
-    loc: &'a Locator,
-    out: Vec<Diagnostic>,
+pub(super) struct Checker<'a> {
+    pub(super) loc: &'a Locator,
+    pub(super) out: Vec<Diagnostic>,
 }
 
 impl Checker<'_> {
-    fn err(&mut self, path: KeyPath, message: impl Into<String>, help: impl Into<String>) {
+    pub(super) fn err(
+        &mut self,
+        path: KeyPath,
+        message: impl Into<String>,
+        help: impl Into<String>,
+    ) {
         self.out.push(self.loc.error(path, message).with_help(help));
     }
 
-    fn warn(&mut self, path: KeyPath, message: impl Into<String>) {
+    pub(super) fn warn(&mut self, path: KeyPath, message: impl Into<String>) {
         self.out.push(self.loc.warning(path, message));
     }
 
@@ -185,7 +193,7 @@ impl Checker<'_> {
         }
     }
 
-    fn id(&mut self, path: &KeyPath, id: &str, what: &str) {
+    pub(super) fn id(&mut self, path: &KeyPath, id: &str, what: &str) {
         if let Some(why) = id_problem(id) {
             self.err(
                 path.clone(),
@@ -275,7 +283,12 @@ impl Checker<'_> {
         }
     }
 
-    fn unique_ids<'s>(&mut self, path: &KeyPath, ids: impl Iterator<Item = &'s str>, what: &str) {
+    pub(super) fn unique_ids<'s>(
+        &mut self,
+        path: &KeyPath,
+        ids: impl Iterator<Item = &'s str>,
+        what: &str,
+    ) {
         let mut seen = HashSet::new();
         for (i, id) in ids.enumerate() {
             self.id(&path.index(i).key("id"), id, &format!("a {what}"));
@@ -289,7 +302,7 @@ impl Checker<'_> {
         }
     }
 
-    fn finite3(&mut self, path: &KeyPath, v: [f64; 3]) {
+    pub(super) fn finite3(&mut self, path: &KeyPath, v: [f64; 3]) {
         if v.iter().any(|x| !x.is_finite()) {
             self.err(
                 path.clone(),
@@ -299,7 +312,7 @@ impl Checker<'_> {
         }
     }
 
-    fn positive(&mut self, path: &KeyPath, v: &[f64], what: &str) {
+    pub(super) fn positive(&mut self, path: &KeyPath, v: &[f64], what: &str) {
         if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
             self.err(
                 path.clone(),

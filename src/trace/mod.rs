@@ -127,6 +127,38 @@ pub fn render_binary_traced(
     image
 }
 
+/// Binary mode's occlusion of a bead: whether its shadow overlaps another object's. That is,
+/// whether some pixel centre whose ray from `source_mm` crosses the bead (the exact sphere
+/// predicate of the projectors) is also crossed by one of `occluders` (traced as
+/// [`render_binary_traced`] does). In a binary image such a bead's disc merges with that
+/// object's shadow: both are at I_max.
+pub fn bead_occluded(
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    centre_mm: DVec3,
+    radius_mm: f64,
+    occluders: &[&Object],
+) -> bool {
+    if occluders.is_empty() {
+        return false;
+    }
+    let bead = Object::Sphere {
+        centre_mm,
+        radius_mm,
+    };
+    let (lo, hi) = bead.local_bounds();
+    let Some((i0, i1, j0, j1)) = pixel_bounds(frame, source_mm, bead.pose(), lo, hi) else {
+        return false;
+    };
+    (j0..j1).any(|j| {
+        (i0..i1).any(|i| {
+            let target = frame.pixel_centre_world(i, j);
+            sphere_blocks(centre_mm, radius_mm, source_mm, target)
+                && occluders.iter().any(|o| o.blocks(source_mm, target))
+        })
+    })
+}
+
 /// Traces `object` over its projected bounds, setting `i_max` where its rays are blocked.
 fn trace_object(
     image: &mut [u16],
@@ -352,6 +384,41 @@ mod tests {
         let area = exact.iter().filter(|&&p| p == 1).count();
         // Only silhouette pixels may differ (the facets lie inside the sphere).
         assert!(area > 5000 && differ * 50 < area, "{differ} of {area}");
+    }
+
+    #[test]
+    fn a_bead_is_occluded_exactly_when_its_disc_shares_a_pixel_with_another_shadow() {
+        // The bead's own image and the slab's image, traced separately: occluded ⇔ some pixel
+        // is set in both. The slab slides across the bead's shadow from far left to far right.
+        let f = frame(120, 0.25);
+        let source = DVec3::new(0.5, -0.3, 1000.0);
+        let (centre, radius) = (DVec3::new(0.2, 0.1, 500.0), 0.5);
+        let bead = [Object::Sphere {
+            centre_mm: centre,
+            radius_mm: radius,
+        }];
+        let disc = render_binary_traced(&f, source, &bead, 1);
+        let mut seen = [false; 2];
+        for step in 0..41 {
+            let x = -12.0 + 0.6 * step as f64;
+            let slab = Object::Cuboid {
+                pose: Pose {
+                    position_mm: DVec3::new(x, 0.0, 300.0),
+                    rotation: crate::geometry::rotation_xyz_deg([0.0, 0.0, 7.0]),
+                },
+                half_size_mm: DVec3::new(5.0, 20.0, 1.0),
+            };
+            let shadow = render_binary_traced(&f, source, std::slice::from_ref(&slab), 1);
+            let overlap = disc.iter().zip(&shadow).any(|(&a, &b)| a == 1 && b == 1);
+            assert_eq!(
+                bead_occluded(&f, source, centre, radius, &[&slab]),
+                overlap,
+                "slab at x = {x}"
+            );
+            seen[usize::from(overlap)] = true;
+        }
+        assert_eq!(seen, [true, true]);
+        assert!(!bead_occluded(&f, source, centre, radius, &[]));
     }
 
     #[test]
