@@ -240,10 +240,10 @@ pub enum Command {
         #[arg(long, value_name = "FILE_NAME")]
         calibration_from: Option<String>,
     },
-    /// Print a JSON Schema: scenario (default), truth, measured or manifest.
+    /// Print a JSON Schema: scenario (default), truth, measured, manifest or migration_measured.
     Schema {
         /// Which schema to print.
-        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest"])]
+        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest", "migration_measured"])]
         name: String,
         /// Instead of printing, write every schema as <DIR>/<name>.schema.json.
         #[arg(long, value_name = "DIR")]

@@ -9,6 +9,7 @@ pub mod folder_readme;
 pub mod html_text;
 pub mod manifest;
 pub mod measured;
+pub mod migration_measured;
 pub mod preview;
 pub mod study;
 pub mod tiff;
@@ -61,7 +62,8 @@ pub fn build() -> Build {
 /// `<version> (unknown build)` without git.
 pub const VERSION_LINE: &str = env!("RSASIM_VERSION_LINE");
 
-/// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`.
+/// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`,
+/// `migration_measured`.
 pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
     vec![
         ("scenario", crate::scenario::json_schema()),
@@ -73,6 +75,12 @@ pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
         (
             "manifest",
             schemars::schema_for!(Manifest).as_value().clone(),
+        ),
+        (
+            "migration_measured",
+            schemars::schema_for!(migration_measured::MigrationMeasured)
+                .as_value()
+                .clone(),
         ),
     ]
 }
