@@ -78,6 +78,9 @@ fn main() -> ExitCode {
             mtpm_threshold_mm,
             report,
             truth,
+            migration_csv,
+            stability_threshold_mm,
+            limits_99,
         }) => evaluate(
             &out,
             truth.as_deref(),
@@ -89,6 +92,11 @@ fn main() -> ExitCode {
             mtpm_threshold_mm,
             &format,
             report,
+            rsasim::evaluate::study::StudyOptions {
+                migration_csv,
+                stability_threshold_mm,
+                limits_99,
+            },
         ),
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         None => {
@@ -345,8 +353,16 @@ fn evaluate(
     mtpm_threshold_mm: f64,
     formats: &[String],
     report_dir: Option<std::path::PathBuf>,
+    study: rsasim::evaluate::study::StudyOptions,
 ) -> Result<(), u8> {
     use rsasim::evaluate::{self, MeasuredSource, Options, report, stats};
+    if !(study.stability_threshold_mm.is_finite() && study.stability_threshold_mm > 0.0) {
+        eprintln!(
+            "error: --stability-threshold-mm {} is not a positive length in mm\n  = help: e.g. --stability-threshold-mm 0.3",
+            study.stability_threshold_mm
+        );
+        return Err(2);
+    }
     if !(confidence > 0.0 && confidence < 1.0) {
         eprintln!(
             "error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95"
@@ -395,6 +411,7 @@ fn evaluate(
             sided,
         },
         mtpm_threshold_mm,
+        study,
     };
     let start = Instant::now();
     let result = evaluate::evaluate_with_truth(out, truth, &options)
