@@ -225,6 +225,11 @@ pub enum Command {
         /// parse). rsasim's own earlier results are always replaced.
         #[arg(long)]
         overwrite: bool,
+        /// Clinical studies (OUT holds study.json): a marker whose leave-one-out residual in the
+        /// fit between an exam and the reference exam exceeds this (mm) is loose and excluded from
+        /// the migration. Default 0.3.
+        #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
+        stability_threshold_mm: f64,
     },
     /// Write an output folder as the files XMALab or Autoscoper open, with the exam's known
     /// calibration: per run, a MayaCam 2.0 camera per detector (and DLT-11 coefficients, the box as

@@ -37,6 +37,7 @@ fn main() -> ExitCode {
             model_method,
             measured,
             overwrite,
+            stability_threshold_mm,
         }) => reconstruct(
             &out,
             &rsasim::reconstruct::Options {
@@ -44,6 +45,7 @@ fn main() -> ExitCode {
                 model_method,
                 measured,
                 overwrite,
+                stability_threshold_mm: Some(stability_threshold_mm),
             },
         ),
         Some(Command::Export {
@@ -286,6 +288,15 @@ fn reconstruct(out: &std::path::Path, options: &rsasim::reconstruct::Options) ->
         start.elapsed().as_secs_f64(),
         summary.measured
     );
+    if let Some(m) = &summary.migration {
+        for f in &m.failures {
+            eprintln!("warning: migration: {f}");
+        }
+        eprintln!(
+            "rsasim reconstruct: study migration: {} migration(s), {} loose marker(s) excluded -> migration_measured.json, migration_measured.csv",
+            m.migrations, m.excluded_markers
+        );
+    }
     if summary.nothing_reconstructed() {
         eprintln!("error: nothing could be reconstructed");
         return Err(1);

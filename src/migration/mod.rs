@@ -12,6 +12,7 @@
 //! judges (the reference program's per-exam fits and the fits between exams).
 
 pub mod analysis;
+pub mod csv;
 pub mod motion;
 pub mod stability;
 

@@ -84,20 +84,6 @@ pub fn read_migration_csv(file: &Path) -> Result<Vec<MeasuredMigration>, Vec<Dia
     }
 }
 
-/// The rows of `migrations` as the migration CSV (full precision), header first.
-pub fn write_migration_csv(migrations: &[MeasuredMigration]) -> String {
-    let mut s = format!("{MIGRATION_CSV_HEADER}\n");
-    for m in migrations {
-        let [tx, ty, tz] = m.translation_mm;
-        let [rx, ry, rz] = m.rotation_deg;
-        s.push_str(&format!(
-            "{},{},{},{tx},{ty},{tz},{rx},{ry},{rz},{}\n",
-            m.patient, m.exam, m.segment, m.mtpm_mm
-        ));
-    }
-    s
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,7 +101,7 @@ mod tests {
         }];
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("m.csv");
-        std::fs::write(&file, write_migration_csv(&rows)).unwrap();
+        std::fs::write(&file, crate::migration::csv::migration_csv(&rows)).unwrap();
         assert_eq!(read_migration_csv(&file).unwrap(), rows);
         std::fs::write(
             &file,

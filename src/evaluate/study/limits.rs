@@ -106,18 +106,19 @@ mod tests {
 
     #[test]
     fn limits_equal_the_hand_computation() {
-        // Differences 0.1, −0.1, 0.2, 0.0, −0.05: mean 0.03, SD = √(0.0595/4) = 0.121963…,
+        // Differences 0.1, −0.1, 0.2, 0.0, −0.05: mean 0.03, squared deviations 0.0049 + 0.0169 +
+        // 0.0289 + 0.0009 + 0.0064 = 0.058, SD = √(0.058/4) = 0.120416…,
         // t(0.975, 4) = 2.7764451051977934 (scipy).
         let d = [0.1, -0.1, 0.2, 0.0, -0.05];
         let l = double_limits("y", "mm", &d, true, false);
-        let sd = (0.0595f64 / 4.0).sqrt();
+        let sd = (0.058f64 / 4.0).sqrt();
         assert_eq!(l.n, 5);
-        assert!((l.mean - 0.03).abs() < 1e-15);
-        assert!((l.sd - sd).abs() < 1e-15);
-        assert!((l.limits_196[0] - (0.03 - 1.96 * sd)).abs() < 1e-15);
-        assert!((l.limits_196[1] - (0.03 + 1.96 * sd)).abs() < 1e-15);
+        assert!((l.mean - 0.03).abs() < 1e-12);
+        assert!((l.sd - sd).abs() < 1e-12);
+        assert!((l.limits_196[0] - (0.03 - 1.96 * sd)).abs() < 1e-12);
+        assert!((l.limits_196[1] - (0.03 + 1.96 * sd)).abs() < 1e-12);
         assert!((l.limit_t95 - 2.7764451051977934 * sd).abs() < 1e-12);
-        assert!((l.limits_2576.unwrap()[1] - (0.03 + 2.576 * sd)).abs() < 1e-15);
+        assert!((l.limits_2576.unwrap()[1] - (0.03 + 2.576 * sd)).abs() < 1e-12);
         assert!((l.limit_t99.unwrap() - 4.604094871349992 * sd).abs() < 1e-12);
         assert_eq!((l.median, l.range), (None, None));
         let m = double_limits("MTPM", "mm", &[0.3, 0.1, 0.2, 0.5], false, true);
