@@ -194,6 +194,20 @@ pub enum Command {
         /// is then its images folder. Both manifests and the binding between them are verified.
         #[arg(long, value_name = "DIR")]
         truth: Option<PathBuf>,
+        /// Clinical studies: a CSV of relative motions per patient, follow-up exam and implant
+        /// segment (header patient,exam,segment,tx_mm,ty_mm,tz_mm,rx_deg,ry_deg,rz_deg,mtpm_mm)
+        /// to score instead of the per-exam results.
+        #[arg(long, value_name = "FILE")]
+        migration_csv: Option<PathBuf>,
+        /// Clinical studies: a marker whose leave-one-out residual between exams exceeds this
+        /// (mm) is loose: excluded when the migration is computed from per-exam results, and the
+        /// loose-marker table lists the markers that truly moved more. Default 0.3.
+        #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
+        stability_threshold_mm: f64,
+        /// Clinical studies: also report the 99 % double-exam limits (mean ± 2.576·SD and
+        /// t(0.995, n−1)·SD).
+        #[arg(long)]
+        limits_99: bool,
     },
     /// Check an output folder against its manifest.json: every listed file present, a regular
     /// file, of the recorded size and SHA-256; the manifest's own hash; files present but not
@@ -237,6 +251,11 @@ pub enum Command {
         /// parse). rsasim's own earlier results are always replaced.
         #[arg(long)]
         overwrite: bool,
+        /// Clinical studies (OUT holds study.json): a marker whose leave-one-out residual in the
+        /// fit between an exam and the reference exam exceeds this (mm) is loose and excluded from
+        /// the migration. Default 0.3.
+        #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
+        stability_threshold_mm: f64,
     },
     /// Write an output folder as the files XMALab or Autoscoper open, with the exam's known
     /// calibration: per run, a MayaCam 2.0 camera per detector (and DLT-11 coefficients, the box as
@@ -315,10 +334,10 @@ pub enum Command {
         #[command(flatten)]
         allow: AllowArgs,
     },
-    /// Print a JSON Schema: scenario (default), truth, measured, manifest or study.
+    /// Print a JSON Schema: scenario (default), truth, measured, manifest, study or migration_measured.
     Schema {
         /// Which schema to print.
-        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest", "study"])]
+        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest", "study", "migration_measured"])]
         name: String,
         /// Instead of printing, write every schema as <DIR>/<name>.schema.json.
         #[arg(long, value_name = "DIR")]

@@ -7,6 +7,7 @@ pub mod expand;
 pub mod geometry;
 pub mod interop;
 pub mod material;
+pub mod migration;
 pub mod noise;
 pub mod output;
 pub mod phantom;

@@ -37,6 +37,7 @@ fn main() -> ExitCode {
             model_method,
             measured,
             overwrite,
+            stability_threshold_mm,
         }) => reconstruct_any(
             &out,
             &rsasim::reconstruct::Options {
@@ -44,6 +45,7 @@ fn main() -> ExitCode {
                 model_method,
                 measured,
                 overwrite,
+                stability_threshold_mm: Some(stability_threshold_mm),
             },
         ),
         Some(Command::Sweep {
@@ -85,6 +87,9 @@ fn main() -> ExitCode {
             mtpm_threshold_mm,
             report,
             truth,
+            migration_csv,
+            stability_threshold_mm,
+            limits_99,
         }) => evaluate(
             &out,
             truth.as_deref(),
@@ -96,6 +101,11 @@ fn main() -> ExitCode {
             mtpm_threshold_mm,
             &format,
             report,
+            rsasim::evaluate::study::StudyOptions {
+                migration_csv,
+                stability_threshold_mm,
+                limits_99,
+            },
         ),
         Some(Command::Verify { out, images }) => verify(&out, images.as_deref()),
         Some(Command::Merge {
@@ -329,6 +339,15 @@ fn reconstruct(out: &std::path::Path, options: &rsasim::reconstruct::Options) ->
         start.elapsed().as_secs_f64(),
         summary.measured
     );
+    if let Some(m) = &summary.migration {
+        for f in &m.failures {
+            eprintln!("warning: migration: {f}");
+        }
+        eprintln!(
+            "rsasim reconstruct: study migration: {} migration(s), {} loose marker(s) excluded -> migration_measured.json, migration_measured.csv",
+            m.migrations, m.excluded_markers
+        );
+    }
     if summary.nothing_reconstructed() {
         eprintln!("error: nothing could be reconstructed");
         return Err(1);
@@ -436,8 +455,16 @@ fn evaluate(
     mtpm_threshold_mm: f64,
     formats: &[String],
     report_dir: Option<std::path::PathBuf>,
+    study: rsasim::evaluate::study::StudyOptions,
 ) -> Result<(), u8> {
     use rsasim::evaluate::{MeasuredSource, Options, report, stats};
+    if !(study.stability_threshold_mm.is_finite() && study.stability_threshold_mm > 0.0) {
+        eprintln!(
+            "error: --stability-threshold-mm {} is not a positive length in mm\n  = help: e.g. --stability-threshold-mm 0.3",
+            study.stability_threshold_mm
+        );
+        return Err(2);
+    }
     if !(confidence > 0.0 && confidence < 1.0) {
         eprintln!(
             "error: --confidence {confidence} is outside (0, 1)\n  = help: e.g. --confidence 0.95"
@@ -486,6 +513,7 @@ fn evaluate(
             sided,
         },
         mtpm_threshold_mm,
+        study,
     };
     if rsasim::sweep::is_sweep_folder(out) {
         return evaluate_sweep(out, truth, &options, &formats, browser.as_ref(), report_dir);
@@ -716,6 +744,7 @@ fn sweep(
             .map(String::from)
             .collect::<Vec<_>>(),
         None,
+        rsasim::evaluate::study::StudyOptions::default(),
     )?;
     reconstructed
 }

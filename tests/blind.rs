@@ -40,6 +40,7 @@ fn options() -> Options {
             sided: Sided::One,
         },
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+        study: Default::default(),
     }
 }
 

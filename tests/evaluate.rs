@@ -123,6 +123,7 @@ fn options() -> Options {
         measured: MeasuredSource::PerRun("measured.json".into()),
         confidence: Confidence::default(),
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+        study: Default::default(),
     }
 }
 

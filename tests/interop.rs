@@ -322,6 +322,7 @@ fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
                 },
                 confidence: Confidence::default(),
                 mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+                study: Default::default(),
             },
         )
         .unwrap_or_else(|e| panic!("{name}: {e:?}"));

@@ -158,6 +158,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
                 measured: MeasuredSource::PerRun(name.into()),
                 confidence: Confidence::default(),
                 mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+                study: Default::default(),
             },
         )
         .unwrap();
@@ -225,6 +226,7 @@ fn reconstruct_without_truth(out: &std::path::Path, args: &[&str], name: &str) -
             measured: MeasuredSource::PerRun(name.into()),
             confidence: Confidence::default(),
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+            study: Default::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"))

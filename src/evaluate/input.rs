@@ -57,6 +57,8 @@ pub struct RunMeasurement {
     pub detectors: BTreeMap<String, (DVec3, Option<DMat3>)>,
     /// Phantom poses by id (rotation optional).
     pub phantoms: BTreeMap<String, (DVec3, Option<DMat3>)>,
+    /// Measured bead centres by phantom id, then bead id (a study's marker-based migration).
+    pub markers: BTreeMap<String, BTreeMap<String, DVec3>>,
     /// Rotations that were re-orthonormalised (rounded, within [`REPAIR_TOLERANCE`](super::rotation::REPAIR_TOLERANCE)).
     pub repaired_rotations: usize,
 }
@@ -394,6 +396,15 @@ pub fn check_measured(
                         &mut out.phantoms
                     };
                     target.insert(e.id.clone(), (p, r.map(|r: CheckedRotation| r.rotation)));
+                    if section == "phantoms" && !e.markers.is_empty() {
+                        out.markers.insert(
+                            e.id.clone(),
+                            e.markers
+                                .iter()
+                                .map(|b| (b.id.clone(), DVec3::from_array(b.position_mm)))
+                                .collect(),
+                        );
+                    }
                 }
                 (Err((field, msg, help)), _, _) => {
                     errors.push(err(section, Some(i), field, &e.id, msg, &help))

@@ -12,6 +12,7 @@ pub mod report;
 pub mod residual;
 pub mod rotation;
 pub mod stats;
+pub mod study;
 pub mod table;
 pub mod truth_check;
 
@@ -63,6 +64,8 @@ pub struct Options {
     pub confidence: Confidence,
     /// The MTPM cells are compared with, mm ([`DEFAULT_MTPM_THRESHOLD_MM`] by default).
     pub mtpm_threshold_mm: f64,
+    /// A clinical study's options (used when the folder has `study.json`).
+    pub study: study::StudyOptions,
 }
 
 /// The default MTPM threshold, mm: the continuous migration between one and two years above
@@ -141,7 +144,9 @@ pub fn evaluate_with_truth(
             found
         }
     };
-    if measurements.is_empty() {
+    let study = study::load_study(truth_root)?;
+    let csv_only = study.is_some() && options.study.migration_csv.is_some();
+    if measurements.is_empty() && !csv_only {
         let what = match &measured {
             MeasuredSource::Auto => "no results found".to_string(),
             MeasuredSource::PerRun(name) => format!(
@@ -157,6 +162,16 @@ pub fn evaluate_with_truth(
             .with_help("run the software under test first (e.g. `rsasim reconstruct OUT`), or point --measured / --csv at its results")]);
     }
 
+    let study_report = match &study {
+        Some(s) => Some(study::evaluate_study(
+            out,
+            s,
+            &measurements,
+            &options.confidence,
+            &options.study,
+        )?),
+        None => None,
+    };
     let scenario_file = truth_root.join("scenario.toml");
     let loaded = scenario::load(&scenario_file)?;
     let (mtpm_points, mtpm_notes) = mtpm_points(&loaded, &truths);
@@ -205,6 +220,7 @@ pub fn evaluate_with_truth(
         mtpm,
         mtpm_threshold_mm: options.mtpm_threshold_mm,
         group_analyses,
+        study: study_report,
     })
 }
 

@@ -108,6 +108,9 @@ pub struct Report {
     pub mtpm_threshold_mm: f64,
     /// ISO 5725-2 analysis per parameter, noise levels as groups.
     pub group_analyses: Vec<GroupAnalysis>,
+    /// A clinical study's migration analysis (folders with `study.json`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub study: Option<super::study::StudyReport>,
 }
 
 impl Row {

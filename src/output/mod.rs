@@ -10,6 +10,7 @@ pub mod html_text;
 pub mod manifest;
 pub mod measured;
 pub mod merge;
+pub mod migration_measured;
 pub mod preview;
 pub mod study;
 pub mod tiff;
@@ -64,7 +65,7 @@ pub fn build() -> Build {
 pub const VERSION_LINE: &str = env!("RSASIM_VERSION_LINE");
 
 /// The JSON Schemas rsasim publishes, by name: `scenario`, `truth`, `measured`, `manifest`,
-/// `study`.
+/// `study`, `migration_measured`.
 pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
     vec![
         ("scenario", crate::scenario::json_schema()),
@@ -80,6 +81,12 @@ pub fn schemas() -> Vec<(&'static str, serde_json::Value)> {
         (
             "study",
             schemars::schema_for!(study::Study).as_value().clone(),
+        ),
+        (
+            "migration_measured",
+            schemars::schema_for!(migration_measured::MigrationMeasured)
+                .as_value()
+                .clone(),
         ),
     ]
 }

@@ -18,6 +18,7 @@ pub mod rigid;
 pub mod selvik;
 pub mod shadow;
 pub mod silhouette;
+pub mod study;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -91,6 +92,9 @@ pub struct Options {
     pub measured: Option<String>,
     /// Replace a results file of that name even when another software wrote it.
     pub overwrite: bool,
+    /// A clinical study's marker-stability threshold, mm; `None`:
+    /// [`crate::migration::DEFAULT_STABILITY_THRESHOLD_MM`].
+    pub stability_threshold_mm: Option<f64>,
 }
 
 /// A run's entity that could not be reconstructed.
@@ -116,6 +120,9 @@ pub struct Summary {
     pub models_found: usize,
     /// Detectors not calibrated and models not found, per run.
     pub failures: Vec<EntityFailure>,
+    /// A clinical study (OUT holds `study.json`): the migration file written and its
+    /// migrations count, and what could not be measured.
+    pub migration: Option<study::StudyOutcome>,
 }
 
 impl Summary {
@@ -255,10 +262,13 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
         models_tried: 0,
         models_found: 0,
         failures: Vec::new(),
+        migration: None,
     };
+    let mut measured_runs = BTreeMap::new();
     for (id, r) in results {
         match r {
             Ok(r) => {
+                measured_runs.insert(id.clone(), r.measured.clone());
                 summary.runs += 1;
                 summary.models_tried += r.models_tried;
                 summary.models_found += r.models_found;
@@ -272,5 +282,13 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
             Err(e) => summary.failed.push((id, e)),
         }
     }
+    summary.migration = study::measure_and_write(
+        out,
+        &measured_runs,
+        options
+            .stability_threshold_mm
+            .unwrap_or(crate::migration::DEFAULT_STABILITY_THRESHOLD_MM),
+        &software,
+    )?;
     Ok(summary)
 }

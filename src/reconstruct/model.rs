@@ -47,6 +47,9 @@ pub struct ModelFit {
     pub beads_used: usize,
     /// Mean crossing-line error of the beads used, mm.
     pub crossing_line_error_mm: f64,
+    /// The beads used: index in the bead table, triangulated centre (box frame, mm) and its
+    /// crossing-line error (mm), in bead-table order.
+    pub beads: Vec<(usize, DVec3, f64)>,
 }
 
 fn candidates(views: &[View]) -> Vec<Candidate> {
@@ -156,10 +159,16 @@ pub fn find_model(views: &[View], model: &[DVec3]) -> Result<ModelFit, String> {
         .map(|&(_, c)| cands[c].crossing_mm)
         .sum::<f64>()
         / pairs.len() as f64;
+    let mut beads: Vec<(usize, DVec3, f64)> = pairs
+        .iter()
+        .map(|&(m, c)| (m, cands[c].position, cands[c].crossing_mm))
+        .collect();
+    beads.sort_by_key(|b| b.0);
     Ok(ModelFit {
         fit,
         beads_used: pairs.len(),
         crossing_line_error_mm: crossing,
+        beads,
     })
 }
 

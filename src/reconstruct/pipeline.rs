@@ -32,10 +32,6 @@ use crate::trace::{MeshBvh, Object, render_binary};
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
 const SEARCH_PX: f64 = 150.0;
-/// RSA guideline limits (Valstar et al. 2005).
-const ME_LIMIT_MM: f64 = 0.35;
-/// Condition-number limit of the guidelines.
-const CN_LIMIT: f64 = 150.0;
 
 /// A calibrated beamline with what it took.
 struct Calibrated {
@@ -696,13 +692,8 @@ fn find_model(
     let local: Vec<DVec3> = beads.iter().map(|b| b.position_mm).collect();
     let found = super::model::find_model(&views, &local)?;
     let fit = &found.fit;
-    let mut flags = Vec::new();
-    if fit.mean_error_mm > ME_LIMIT_MM {
-        flags.push(format!("ME > {ME_LIMIT_MM} mm"));
-    }
-    if fit.condition_number > CN_LIMIT {
-        flags.push(format!("CN > {CN_LIMIT}"));
-    }
+    let flags =
+        crate::migration::quality_flags(Some(fit.mean_error_mm), Some(fit.condition_number));
     let occluded = images
         .iter()
         .flat_map(|(id, frame, source_mm, radius_px, image)| {
@@ -715,7 +706,7 @@ fn find_model(
             })
         })
         .collect();
-    Ok(model_pose(
+    let mut pose = model_pose(
         &fit.pose,
         FitQuality {
             beads_used: Some(found.beads_used),
@@ -726,7 +717,21 @@ fn find_model(
             occluded,
             ..Default::default()
         },
-    ))
+    );
+    // The triangulated centres: what marker-based RSA between exams (a study's migration) fits.
+    pose.markers = found
+        .beads
+        .iter()
+        .map(|&(k, centre, crossing_mm)| MeasuredPoint {
+            id: beads[k].id.clone(),
+            position_mm: centre.to_array(),
+            quality: Some(FitQuality {
+                crossing_line_error_mm: Some(crossing_mm),
+                ..Default::default()
+            }),
+        })
+        .collect();
+    Ok(pose)
 }
 
 /// A model's measured pose (its id filled in by the caller) with the fit's quality.

@@ -115,6 +115,7 @@ pub fn report() -> Report {
             unit: "mm".into(),
             analysis,
         }],
+        study: None,
     };
     let sig: Vec<Significance> = report.tables[0].rows[0]
         .cells

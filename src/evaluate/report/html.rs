@@ -104,6 +104,9 @@ pub fn html(report: &Report) -> String {
         None => s.push_str("<p>No MTPM table (no model with beads was scored).</p>\n"),
     }
     iso5725(&mut s, report);
+    if let Some(study) = &report.study {
+        super::study::html(&mut s, study);
+    }
     s.push_str("</body>\n</html>\n");
     s
 }

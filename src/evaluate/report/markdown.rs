@@ -69,6 +69,9 @@ pub fn markdown(report: &Report) -> String {
         None => s.push_str("No MTPM table (no model with beads was scored).\n\n"),
     }
     iso5725(&mut s, report);
+    if let Some(study) = &report.study {
+        super::study::markdown(&mut s, study);
+    }
     s
 }
 

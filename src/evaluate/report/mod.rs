@@ -23,6 +23,7 @@ mod latex;
 mod markdown;
 mod number;
 pub mod pdf;
+mod study;
 mod svg;
 pub mod sweep;
 

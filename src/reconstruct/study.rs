@@ -1,0 +1,84 @@
+//! The reference program's migration step: on a clinical study's output folder (it holds
+//! `study.json`), each patient's migration from the exams just reconstructed, written as
+//! `migration_measured.json` and `migration_measured.csv` at the top of the folder.
+//!
+//! It reads of `study.json` only the design (segments, anatomical frame, MTPM points, exams and
+//! which run is which exam), never its migration or loose-marker records.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use crate::diagnostic::Diagnostic;
+use crate::migration::analysis::{exam_seen, measure_study};
+use crate::output::atomic::write_atomic;
+use crate::output::measured::Measured;
+use crate::output::migration_measured::{MIGRATION_MEASURED_CSV, MIGRATION_MEASURED_FILE};
+use crate::output::study::Study;
+
+/// What the migration step wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyOutcome {
+    /// Migrations measured (patients × follow-ups × implants).
+    pub migrations: usize,
+    /// Markers excluded as loose, over every patient and exam.
+    pub excluded_markers: usize,
+    /// What could not be measured.
+    pub failures: Vec<String>,
+}
+
+/// Measures and writes the study's migration when `out` holds `study.json`; `None` otherwise.
+/// `runs` are the results just written, by run id.
+pub fn measure_and_write(
+    out: &Path,
+    runs: &BTreeMap<String, Measured>,
+    threshold_mm: f64,
+    software: &str,
+) -> Result<Option<StudyOutcome>, Vec<Diagnostic>> {
+    let file = out.join("study.json");
+    if !file.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&file)
+        .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
+    let design: Study = serde_json::from_str(&text).map_err(|e| {
+        vec![
+            Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
+                .with_help("study.json is written by the simulator: re-run the scenario"),
+        ]
+    })?;
+    let seen = design
+        .patients
+        .iter()
+        .map(|p| {
+            let exams = p
+                .runs
+                .iter()
+                .filter_map(|(exam, run)| Some((exam.clone(), exam_seen(runs.get(run)?))))
+                .collect();
+            (p.id.clone(), exams)
+        })
+        .collect();
+    let measured = measure_study(&design, &seen, threshold_mm, software)
+        .map_err(|e| vec![Diagnostic::file_error(&file, e)])?;
+    let write = |name: &str, bytes: &[u8]| {
+        write_atomic(&out.join(name), bytes).map_err(|e| {
+            vec![Diagnostic::file_error(
+                &out.join(name),
+                format!("cannot write: {e}"),
+            )]
+        })
+    };
+    let mut json = serde_json::to_vec_pretty(&measured)
+        .map_err(|e| vec![Diagnostic::file_error(&file, e.to_string())])?;
+    json.push(b'\n');
+    write(MIGRATION_MEASURED_FILE, &json)?;
+    write(
+        MIGRATION_MEASURED_CSV,
+        crate::migration::csv::migration_csv(&measured.migrations).as_bytes(),
+    )?;
+    Ok(Some(StudyOutcome {
+        migrations: measured.migrations.len(),
+        excluded_markers: measured.segments.iter().map(|s| s.excluded.len()).sum(),
+        failures: measured.failures,
+    }))
+}
