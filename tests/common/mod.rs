@@ -21,6 +21,17 @@ pub fn rsasim(args: &[&str], env: &[(&str, &str)]) -> Output {
     cmd.output().expect("rsasim runs")
 }
 
+/// Runs the `rsasim` binary with `args` and panics with its stderr unless it succeeds.
+pub fn rsasim_ok(args: &[&str]) -> Output {
+    let o = rsasim(args, &[]);
+    assert!(
+        o.status.success(),
+        "rsasim {args:?} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
 /// The test scenarios (`tests/scenarios/`, `scenarios/golden/small_biplanar.toml`) use the
 /// shipped model in `scenarios/models/`, outside their folder: runs allow it with `--allow-dir`.
 pub const ALLOW_MODELS: [&str; 2] = ["--allow-dir", "scenarios/models"];
