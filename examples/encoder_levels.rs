@@ -17,7 +17,7 @@ use miniz_oxide_exr::deflate::core::{
     CompressorOxide, TDEFLFlush, TDEFLStatus, compress, create_comp_flags_from_zip_params,
 };
 
-/// miniz_oxide 0.8.9 (EXR blocks today) at `level`, zlib stream: its length.
+/// miniz_oxide 0.8.9 (EXR blocks up to 0.4.0) at `level`, zlib stream: its length.
 fn miniz(input: &[u8], level: i32) -> usize {
     let flags = create_comp_flags_from_zip_params(level, 1, 0);
     let mut c = CompressorOxide::new(flags);
@@ -25,6 +25,13 @@ fn miniz(input: &[u8], level: i32) -> usize {
     let (status, _, n) = compress(&mut c, input, &mut out, TDEFLFlush::Finish);
     assert!(matches!(status, TDEFLStatus::Done), "miniz_oxide failed");
     n
+}
+
+/// libdeflate (through libdeflater; EXR blocks from 0.5.0) at `level`, zlib stream: its length.
+fn libdeflate(input: &[u8], level: i32) -> usize {
+    let mut c = libdeflater::Compressor::new(libdeflater::CompressionLvl::new(level).unwrap());
+    let mut out = vec![0u8; c.zlib_compress_bound(input.len())];
+    c.zlib_compress(input, &mut out).unwrap()
 }
 
 /// miniz_oxide 0.9.1 (the `tiff` crate's Deflate, through flate2) at `level`.
@@ -70,7 +77,10 @@ fn main() {
         }
     }
     type Encoder = (&'static str, fn(&[u8]) -> usize);
-    let encoders: [Encoder; 8] = [
+    let encoders: [Encoder; 11] = [
+        ("libdeflate level 1 (EXR now)", |x| libdeflate(x, 1)),
+        ("libdeflate level 2", |x| libdeflate(x, 2)),
+        ("libdeflate level 4", |x| libdeflate(x, 4)),
         ("miniz_oxide 0.9 level 1", |x| miniz_09(x, 1)),
         ("miniz_oxide 0.8 level 1", |x| miniz(x, 1)),
         ("miniz_oxide 0.8 level 2", |x| miniz(x, 2)),

@@ -20,11 +20,11 @@
 //! module does the OpenEXR ZIP preprocessing itself, exactly as the OpenEXR library and the
 //! `exr` crate do (little-endian samples; even-indexed bytes to the first half of the block and
 //! odd-indexed bytes to the second; then each byte replaced by `(b[i] − b[i−1] + 128) mod 256`,
-//! the first byte kept), deflates the result into a zlib stream with miniz_oxide 0.8.9 (pinned:
-//! pure, scalar Rust, so the same bytes on every platform) at [`ZIP_LEVEL`], and hands the
-//! finished blocks to the crate's chunk writer (`exr::block`). As in both libraries, a block
+//! the first byte kept), deflates the result into a zlib stream with libdeflate (pinned through
+//! `libdeflater`; deterministic for its version on every platform) at [`ZIP_LEVEL`], and hands
+//! the finished blocks to the crate's chunk writer (`exr::block`). As in both libraries, a block
 //! whose compressed form is not smaller than its raw form is stored raw (readers recognise it by
-//! its size). At level 4 this path gives exactly the crate's bytes (a test checks it).
+//! its size). The bytes it deflates are exactly the crate's (a test inflates both).
 //! [`ExrCompression::Rle`] and [`ExrCompression::None`] blocks come from the crate's own
 //! compressor (`Compression::compress_image_section_to_le`).
 
@@ -186,21 +186,12 @@ pub fn encode_exr_channels(
     Ok(bytes)
 }
 
-/// The miniz_oxide level for ZIP and ZIPS blocks. Measured on the biplanar protocol's images
-/// (1440², all five noise levels, miniz_oxide 0.8.9, one thread), per image:
-///
-/// | level | deflate time | EXR size |
-/// |---|---|---|
-/// | 1 | 61 ms | 4.42 MB |
-/// | 2 | 121 ms | 3.53 MB |
-/// | 3 | 174 ms | 3.44 MB |
-/// | 4 (the `exr` crate's) | 216 ms | 3.48 MB |
-/// | 5 | 274 ms | 3.44 MB |
-/// | 6 | 499 ms | 3.38 MB |
-///
-/// Level 1 is the only one that brings the protocol within its time budget; the files are about
-/// a quarter larger than at level 4. Changing it changes every EXR file's bytes.
-pub const ZIP_LEVEL: u8 = 1;
+/// The libdeflate level for ZIP and ZIPS blocks. Measured on the biplanar protocol's images
+/// (`cargo run --release --example encoder_levels`, BENCHMARKS.md "Encoders"): level 1 deflates
+/// an image's blocks in about a third of miniz_oxide's time at its level 1 (the encoder up to
+/// 0.4.0) for files of the same size; higher levels cost more time for a few per cent.
+/// Changing it changes every EXR file's bytes.
+pub const ZIP_LEVEL: i32 = 1;
 
 /// The pixel blocks of the file in increasing `y`, each as stored (compressed or raw, little
 /// endian). Blocks are independent, so they are compressed in parallel and collected in order.
@@ -222,7 +213,7 @@ fn compress_blocks(
             let rows = lines.min(h - y);
             let block = &pixels[y * line..(y + rows) * line];
             match compression {
-                ExrCompression::Zip | ExrCompression::Zips => Ok(zip_block(block, ZIP_LEVEL)),
+                ExrCompression::Zip | ExrCompression::Zips => Ok(zip_block(block)),
                 ExrCompression::None | ExrCompression::Rle => {
                     let ne: Vec<u8> = block.iter().flat_map(|v| v.to_ne_bytes()).collect();
                     let bounds = IntegerBounds::new(Vec2(0, y as i32), Vec2(w, rows));
@@ -237,17 +228,37 @@ fn compress_blocks(
 }
 
 /// One OpenEXR ZIP block: the samples as little-endian bytes, split into even- and odd-indexed
-/// bytes, delta-coded (`b[i] − b[i−1] + 128`), then deflated as a zlib stream. Stored raw
-/// (little-endian samples) if that is not larger than the compressed form, as OpenEXR does.
-fn zip_block(samples: &[f32], level: u8) -> Vec<u8> {
+/// bytes, delta-coded (`b[i] − b[i−1] + 128`), then deflated as a zlib stream at [`ZIP_LEVEL`].
+/// Stored raw (little-endian samples) if that is not larger than the compressed form, as OpenEXR
+/// does.
+fn zip_block(samples: &[f32]) -> Vec<u8> {
     let n = samples.len() * 4;
-    let split = zip_predicted(samples);
-    let compressed = miniz_oxide_exr::deflate::compress_to_vec_zlib(&split, level);
-    if compressed.len() < n {
-        compressed
-    } else {
-        samples.iter().flat_map(|v| v.to_le_bytes()).collect()
+    match zlib(&zip_predicted(samples)) {
+        Some(compressed) if compressed.len() < n => compressed,
+        _ => samples.iter().flat_map(|v| v.to_le_bytes()).collect(),
     }
+}
+
+/// `bytes` as a zlib stream from libdeflate at [`ZIP_LEVEL`] (one compressor per thread: it
+/// holds about 1 MB of match-finder tables). `None` if libdeflate fails, which it does not with
+/// an output buffer of its own bound; the block is then stored raw.
+fn zlib(bytes: &[u8]) -> Option<Vec<u8>> {
+    use libdeflater::{CompressionLvl, Compressor};
+    use std::cell::RefCell;
+    thread_local! {
+        static COMPRESSOR: RefCell<Option<Compressor>> = const { RefCell::new(None) };
+    }
+    COMPRESSOR.with(|cell| {
+        let mut cell = cell.borrow_mut();
+        let compressor = match cell.as_mut() {
+            Some(c) => c,
+            None => cell.insert(Compressor::new(CompressionLvl::new(ZIP_LEVEL).ok()?)),
+        };
+        let mut out = vec![0u8; compressor.zlib_compress_bound(bytes.len())];
+        let len = compressor.zlib_compress(bytes, &mut out).ok()?;
+        out.truncate(len);
+        Some(out)
+    })
 }
 
 /// The bytes OpenEXR's ZIP compression deflates for one block of samples: little-endian bytes
@@ -606,10 +617,11 @@ mod tests {
         }
     }
 
-    /// At the `exr` crate's level (4) our ZIP preprocessing and deflate give exactly the crate's
-    /// blocks, for ZIP (16 lines) and ZIPS (1 line), compressible and incompressible data.
+    /// Our ZIP blocks hold exactly the bytes the `exr` crate's blocks hold (both inflated), or are
+    /// stored raw exactly where the crate stores them raw, for ZIP (16 lines) and ZIPS (1 line),
+    /// compressible and incompressible data.
     #[test]
-    fn zip_blocks_match_the_exr_crate_at_its_level() {
+    fn zip_blocks_hold_the_exr_crates_bytes() {
         let (w, h) = (37usize, 35usize);
         for px in [noisy(w, h, 0.3, 65535), awkward(w * h, 9)] {
             for c in [ExrCompression::Zip, ExrCompression::Zips] {
@@ -637,7 +649,22 @@ mod tests {
                         .to_exr()
                         .compress_image_section_to_le(&header, ne, bounds)
                         .unwrap();
-                    assert_eq!(zip_block(block, 4), theirs, "{c:?} block at y = {y}");
+                    let ours = zip_block(block);
+                    // A block is stored raw (little-endian samples, its size) or deflated (the
+                    // predicted bytes): both decode to the samples, and every deflated block of
+                    // the crate inflates to our prediction.
+                    let raw = block.len() * 4;
+                    let le: Vec<u8> = block.iter().flat_map(|v| v.to_le_bytes()).collect();
+                    for (who, b) in [("ours", &ours), ("theirs", &theirs)] {
+                        let holds = if b.len() == raw {
+                            b.to_vec() == le
+                        } else {
+                            miniz_oxide::inflate::decompress_to_vec_zlib(b).unwrap()
+                                == zip_predicted(block)
+                        };
+                        assert!(holds, "{who}: {c:?} block at y = {y}");
+                    }
+                    assert!(ours.len() <= raw, "{c:?} block at y = {y}");
                 }
             }
         }
