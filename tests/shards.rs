@@ -433,3 +433,29 @@ fn shard_auto_takes_the_shard_from_slurm_or_kubernetes() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!none.exists());
 }
+
+#[test]
+fn a_clinical_study_in_shards_merges_into_the_single_run() {
+    // A study's runs (patients × exams) and its study.json shard and merge like a protocol's.
+    let tmp = tempfile::tempdir().unwrap();
+    let study = "tests/scenarios/study.toml";
+    let single = tmp.path().join("single");
+    let mut args = vec![study, "--out", s(&single)];
+    args.extend(ALLOW_MODELS);
+    ok(rsasim(&args, &[]));
+    let base = tmp.path().join("shards");
+    let shards: Vec<PathBuf> = (0..3)
+        .map(|k| {
+            let spec = format!("{k}/3");
+            let mut args = vec![study, "--out", s(&base), "--shard", &spec];
+            args.extend(ALLOW_MODELS);
+            ok(rsasim(&args, &[]));
+            base.join(format!("shard-{k}-of-3"))
+        })
+        .collect();
+    assert!(shards.iter().all(|d| d.join("study.json").is_file()));
+    let merged = tmp.path().join("merged");
+    ok(merge(&shards, &merged));
+    assert_eq!(hashes(&merged), hashes(&single));
+    assert!(single.join("study.json").is_file());
+}
