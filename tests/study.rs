@@ -513,3 +513,35 @@ fn bad_designs_are_located_errors() {
         assert!(!out.exists(), "{case}: something was written");
     }
 }
+
+#[test]
+fn in_attenuation_mode_the_migration_truth_matches_the_absolute_poses_too() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("study_attenuation");
+    run_scenario("tests/scenarios/study_attenuation.toml", &out, &[]);
+    let study = read_json(&out.join("study.json"));
+    let independent = independent_migration(&out, &study);
+    let mut checked = 0;
+    for patient in study["patients"].as_array().unwrap() {
+        let id = patient["id"].as_str().unwrap();
+        for m in patient["migration"].as_array().unwrap() {
+            let mine = independent[&(id.to_string(), m["exam"].as_str().unwrap().to_string())];
+            for k in 0..3 {
+                assert!((mine[k] - m["translation_mm"][k].as_f64().unwrap()).abs() < 1e-9);
+                assert!((mine[3 + k] - m["rotation_deg"][k].as_f64().unwrap()).abs() < 1e-9);
+            }
+            assert!((mine[6] - m["mtpm_mm"].as_f64().unwrap()).abs() < 1e-9);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 12);
+    // Attenuation mode records, per bead and image, whether it is seen over the metal.
+    let truth = read_json(&out.join("runs/p01-e0-postop/truth.json"));
+    assert!(
+        truth["images"][0]["markers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|m| m["occluded"].is_boolean())
+    );
+}
