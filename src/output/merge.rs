@@ -123,7 +123,13 @@ fn read_shard(dir: &Path, not_merged: &mut Vec<String>) -> Result<Shard, Vec<Dia
             .iter()
             .map(|p| dir.join(p).display().to_string()),
     );
-    let manifest = v.manifest.expect("a verified folder has its manifest");
+    let Some(manifest) = v.manifest else {
+        return Err(vec![error(
+            &dir.join("manifest.json"),
+            "not an rsasim output folder: it has no readable manifest.json",
+            "give the shard folders rsasim SCENARIO --shard K/N wrote (e.g. OUT/shard-0-of-4)",
+        )]);
+    };
     let Some(record) = manifest.shard.clone() else {
         return Err(vec![error(
             &dir.join("manifest.json"),
