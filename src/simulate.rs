@@ -273,7 +273,7 @@ pub fn simulate(
         let study_root = truth_root.unwrap_or(root);
         truth_files.push(manifest_entry(
             study_root,
-            &study_root.join("study.json"),
+            &study_root.join(crate::output::study::STUDY_FILE),
             &json_bytes(&study),
         )?);
     }

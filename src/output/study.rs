@@ -19,18 +19,42 @@
 //!   convention); `mtpm_mm` is the largest `|M·p − p|` over the implant's `mtpm_points_mm`.
 
 use std::collections::BTreeMap;
+use std::path::Path;
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use glam::DVec3;
 
+use crate::diagnostic::Diagnostic;
 use crate::expand::study;
 use crate::geometry::{Pose, euler_xyz_deg};
 use crate::scenario::{Scenario, StudyDesign};
 
 /// The format tag of study files written by this version.
 pub const STUDY_FORMAT: &str = "rsasim-study/1";
+
+/// The study file's name, at the top of an output folder (or of its truth folder).
+pub const STUDY_FILE: &str = "study.json";
+
+/// Reads [`STUDY_FILE`] from `dir`: `None` when there is none (not a study); a byte-order mark
+/// is skipped. Errors name the file (and the line of a parse error).
+pub fn read_study(dir: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
+    let file = dir.join(STUDY_FILE);
+    if !file.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&file)
+        .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
+    serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
+        .map(Some)
+        .map_err(|e| {
+            vec![
+                Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
+                    .with_help("study.json is written by the simulator: re-run the scenario"),
+            ]
+        })
+}
 
 /// The design of a clinical RSA study and its migration truth.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -13,7 +13,7 @@ use crate::migration::analysis::{exam_seen, measure_study};
 use crate::output::atomic::write_atomic;
 use crate::output::measured::Measured;
 use crate::output::migration_measured::{MIGRATION_MEASURED_CSV, MIGRATION_MEASURED_FILE};
-use crate::output::study::Study;
+use crate::output::study::{STUDY_FILE, read_study};
 
 /// What the migration step wrote.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,18 +34,10 @@ pub fn measure_and_write(
     threshold_mm: f64,
     software: &str,
 ) -> Result<Option<StudyOutcome>, Vec<Diagnostic>> {
-    let file = out.join("study.json");
-    if !file.exists() {
+    let Some(design) = read_study(out)? else {
         return Ok(None);
-    }
-    let text = std::fs::read_to_string(&file)
-        .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
-    let design: Study = serde_json::from_str(&text).map_err(|e| {
-        vec![
-            Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
-                .with_help("study.json is written by the simulator: re-run the scenario"),
-        ]
-    })?;
+    };
+    let file = out.join(STUDY_FILE);
     let seen = design
         .patients
         .iter()

@@ -26,11 +26,10 @@ use crate::migration::analysis::{ExamSeen, SegmentSeen, design_roles, measure_st
 use crate::output::migration_measured::{
     MIGRATION_MEASURED_FILE, MeasuredMigration, MigrationMeasured, SegmentExam,
 };
-use crate::output::study::Study;
+use crate::output::study::{STUDY_FILE, Study, read_study};
 use limits::{DoubleLimits, double_limits};
 
 /// The file name of a study's design and truth at the top of the output folder.
-pub const STUDY_FILE: &str = "study.json";
 
 /// The seven reported parameters: label and unit.
 pub const PARAMETERS: [(&str, &str); 7] = [
@@ -173,22 +172,14 @@ fn values(t: [f64; 3], r: [f64; 3], mtpm: f64) -> [f64; 7] {
     [t[0], t[1], t[2], r[0], r[1], r[2], mtpm]
 }
 
-/// Reads `study.json` from `truth_root`; `None` when there is none (not a study).
+/// Reads `study.json` from `truth_root` ([`read_study`]) and checks its design's roles; `None`
+/// when there is none (not a study).
 pub fn load_study(truth_root: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
-    let file = truth_root.join(STUDY_FILE);
-    if !file.exists() {
+    let Some(study) = read_study(truth_root)? else {
         return Ok(None);
-    }
-    let text = std::fs::read_to_string(&file)
-        .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
-    let study: Study = serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
-        .map_err(|e| {
-            vec![
-                Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
-                    .with_help("study.json is written by the simulator: re-run the scenario"),
-            ]
-        })?;
-    design_roles(&study).map_err(|e| vec![Diagnostic::file_error(&file, e)])?;
+    };
+    design_roles(&study)
+        .map_err(|e| vec![Diagnostic::file_error(&truth_root.join(STUDY_FILE), e)])?;
     Ok(Some(study))
 }
 
