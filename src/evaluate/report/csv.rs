@@ -5,7 +5,7 @@ use crate::evaluate::stats::Significance;
 use crate::evaluate::table::Report;
 
 /// Header of [`csv`].
-pub(crate) const HEADER: [&str; 12] = [
+pub(crate) const HEADER: [&str; 13] = [
     "table",
     "group",
     "parameter",
@@ -18,13 +18,16 @@ pub(crate) const HEADER: [&str; 12] = [
     "tau",
     "rms",
     "significance",
+    "exposure_factor",
 ];
 
 /// One long table, one row per (table, group, parameter, noise level), the paper's tables first
 /// and the MTPM table last. Numbers are Rust's shortest round-trip `{}` formatting (NaN where
 /// undefined, e.g. the precision at N = 1), so every cell can be re-computed; a parameter no run
-/// measured at a noise level has empty fields. `noise_level` is a fraction of I_max;
-/// `significance` is `positive`, `negative` or `none`.
+/// measured at a noise level has empty fields. `noise_level` is a fraction of I_max (0 in
+/// attenuation mode, where the levels are exposures); `significance` is `positive`, `negative`
+/// or `none`; `exposure_factor` (last, so that older column positions hold) is the level's
+/// exposure factor in attenuation mode and empty in binary mode.
 pub fn csv(report: &Report) -> String {
     let mut w = writer();
     w.write_record(HEADER).expect("write to memory");
@@ -60,6 +63,10 @@ pub(crate) fn records(report: &Report) -> Vec<Vec<String>> {
                     ]),
                     None => record.extend(std::iter::repeat_n(String::new(), 7)),
                 }
+                record.push(
+                    row.exposure_factor
+                        .map_or_else(String::new, |f| f.to_string()),
+                );
                 out.push(record);
             }
         }
@@ -154,12 +161,35 @@ mod tests {
                             }
                             assert_eq!(&rec[11], significance(cell.significance));
                         }
-                        None => assert!(rec.iter().skip(5).all(str::is_empty)),
+                        None => assert!(rec.iter().skip(5).take(7).all(str::is_empty)),
+                    }
+                    match row.exposure_factor {
+                        Some(f) => assert!(same(f, &rec[12])),
+                        None => assert_eq!(&rec[12], ""),
                     }
                 }
             }
         }
         assert!(rows.next().is_none());
+    }
+
+    #[test]
+    fn exposure_levels_are_written_in_the_last_column() {
+        let mut r = report();
+        for table in &mut r.tables {
+            for (l, row) in table.rows.iter_mut().enumerate() {
+                row.noise_level = 0.0;
+                row.exposure_factor = Some([0.25, 2.0][l % 2]);
+            }
+        }
+        let rows = parse(&csv(&r));
+        assert!(!rows.is_empty());
+        let mut seen: Vec<&str> = rows.iter().map(|rec| &rec[12]).collect();
+        seen.dedup();
+        assert!(seen.contains(&"0.25") && seen.contains(&"2"), "{seen:?}");
+        assert!(rows.iter().all(|rec| &rec[4] == "0"));
+        // Binary-mode rows leave it empty.
+        assert!(parse(&csv(&report())).iter().all(|rec| rec[12].is_empty()));
     }
 
     #[test]

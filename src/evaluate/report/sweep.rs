@@ -45,7 +45,7 @@ pub struct Summary<'a> {
 
 /// The summary as CSV: columns `point`, one per parameter (named after it), then the columns of
 /// an evaluation's `report.csv` (table, group, parameter, unit, noise_level, n, trueness,
-/// precision, sd, tau, rms, significance). One row per point and cell of its report, in point
+/// precision, sd, tau, rms, significance, exposure_factor). One row per point and cell of its report, in point
 /// order and then in `report.csv`'s order, with the same text in every shared field, so each
 /// point's rows are exactly its report.csv rows.
 pub fn summary_csv(summary: &Summary) -> String {
