@@ -111,6 +111,18 @@ fn after(args: &[String], flag: &str) -> String {
     args[i + 1].clone()
 }
 
+/// Runs `rsasim ARGS --shard auto --shard-count COMPLETIONS --out OUT` as the pod of index
+/// completions − 1 would, asserts it succeeds, and returns that index.
+fn in_last_pod(completions: &str, args: &[&str], out: &std::path::Path) -> String {
+    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
+    let mut all = args.to_vec();
+    all.extend(["--shard", "auto", "--shard-count", completions]);
+    all.extend(["--out", out.to_str().unwrap()]);
+    let o = common::rsasim(&all, &[("JOB_COMPLETION_INDEX", &last)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    last
+}
+
 #[test]
 fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
     let job = text(MANIFESTS[0]);
@@ -127,23 +139,16 @@ fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
     );
     // The same arguments in a pod of index completions − 1 are accepted and write that shard.
     let tmp = tempfile::tempdir().unwrap();
-    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
     let out = tmp.path().join("shards");
-    let o = common::rsasim(
+    let last = in_last_pod(
+        &completions,
         &[
             "tests/scenarios/shards.toml",
-            "--shard",
-            "auto",
-            "--shard-count",
-            &completions,
-            "--out",
-            out.to_str().unwrap(),
             common::ALLOW_MODELS[0],
             common::ALLOW_MODELS[1],
         ],
-        &[("JOB_COMPLETION_INDEX", &last)],
+        &out,
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
         out.join(format!("shard-{last}-of-{completions}/manifest.json"))
             .is_file()
@@ -172,22 +177,12 @@ fn the_sweeps_indexed_job_and_its_merge_agree() {
     // The task arguments in the pod of index completions − 1, on the small test sweep: one
     // shard of every point, of this split.
     let tmp = tempfile::tempdir().unwrap();
-    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
     let out = tmp.path().join("sweep");
-    let o = common::rsasim(
-        &[
-            "sweep",
-            "tests/scenarios/sweeps/small_angle.toml",
-            "--shard",
-            "auto",
-            "--shard-count",
-            &completions,
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[("JOB_COMPLETION_INDEX", &last)],
+    in_last_pod(
+        &completions,
+        &["sweep", "tests/scenarios/sweeps/small_angle.toml"],
+        &out,
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for point in ["p00", "p01", "p02"] {
         let shards: Vec<String> = std::fs::read_dir(out.join("shards").join(point))
             .unwrap()
