@@ -45,9 +45,17 @@ fn shard_folders(holder: &Path) -> std::io::Result<BTreeMap<usize, Vec<PathBuf>>
         .collect())
 }
 
-/// `message` as said of point `id` (`point p01 (key = value): …`).
-fn of_point(sweep: &Sweep, index: usize, d: Diagnostic) -> Diagnostic {
+/// A diagnostic said of point `index` (`point p01 (key = value): …`), its help (written for
+/// `rsasim merge`) naming the point's scenario and shard folder.
+fn of_point(sweep: &Sweep, folder: &SweepFolder, index: usize, d: Diagnostic) -> Diagnostic {
     let point = &sweep.points[index];
+    let help = d.help.map(|h| {
+        format!(
+            "{h} (SCENARIO is {}, the shards' --out {}; or rerun the sweep's tasks: a finished one writes nothing)",
+            folder.point_scenario(&point.id).display(),
+            folder.point_shards(&point.id).display()
+        )
+    });
     Diagnostic {
         message: format!(
             "point {} ({}): {}",
@@ -55,6 +63,7 @@ fn of_point(sweep: &Sweep, index: usize, d: Diagnostic) -> Diagnostic {
             sweep.assignments(point),
             d.message
         ),
+        help,
         ..d
     }
 }
@@ -77,17 +86,19 @@ pub fn check(
             continue;
         }
         let holder = folder.point_shards(&point.id);
-        let fail = |message: String, help: &str| {
-            of_point(
-                sweep,
-                i,
-                Diagnostic::file_error(&holder, message).with_help(help),
-            )
+        let fail = |message: String, help: &str| Diagnostic {
+            help: Some(help.to_string()),
+            ..of_point(sweep, folder, i, Diagnostic::file_error(&holder, message))
         };
         let found = match shard_folders(&holder) {
             Ok(found) => found,
             Err(e) => {
-                errors.push(fail(format!("no shards to merge: {e}"), run_help));
+                let why = if e.kind() == std::io::ErrorKind::NotFound {
+                    "the folder does not exist".to_string()
+                } else {
+                    format!("the folder cannot be read: {e}")
+                };
+                errors.push(fail(format!("no shards to merge: {why}"), run_help));
                 continue;
             }
         };
@@ -137,7 +148,7 @@ pub fn check(
                 out: folder.point_out(&point.id),
                 shards,
             }),
-            Err(e) => errors.extend(e.into_iter().map(|d| of_point(sweep, i, d))),
+            Err(e) => errors.extend(e.into_iter().map(|d| of_point(sweep, folder, i, d))),
         }
     }
     if errors.is_empty() {
