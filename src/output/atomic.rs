@@ -50,12 +50,21 @@ pub fn write_staged(path: &Path, bytes: &[u8]) -> std::io::Result<String> {
     Ok(hex(&Sha256::digest(bytes)))
 }
 
+/// The start and end of the names of this module's temporary files.
+const PARTIAL: (&str, &str) = (".rsasim-", ".partial");
+
+/// Whether a file name is one of this module's temporary files (a writer still at work, or one
+/// killed before it could remove its file).
+pub fn is_partial(name: &str) -> bool {
+    name.starts_with(PARTIAL.0) && name.ends_with(PARTIAL.1)
+}
+
 /// A temporary file `.rsasim-*.partial` beside `path` holding `bytes`, synced, removed when
 /// dropped unless moved into place.
 fn synced_temporary(path: &Path, bytes: &[u8]) -> std::io::Result<tempfile::NamedTempFile> {
     injected_fault(path)?;
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".rsasim-").suffix(".partial");
+    builder.prefix(PARTIAL.0).suffix(PARTIAL.1);
     // Temporary files are created 0600; outputs are ordinary files for every reader (0644).
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
@@ -178,6 +187,6 @@ mod tests {
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
-        assert!(names.iter().all(|n| !n.ends_with(".partial")), "{names:?}");
+        assert!(names.iter().all(|n| !is_partial(n)), "{names:?}");
     }
 }

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::prepare::{INPUTS_DIR, POINTS_DIR, Sweep};
 use crate::diagnostic::Diagnostic;
-use crate::output::atomic::{Once, write_once};
+use crate::output::atomic::{Once, is_partial, write_once};
 use crate::output::commit::guard::{self, Existing};
 use crate::output::commit::lock::{LockError, OutputLock};
 use crate::scenario::hex;
@@ -219,9 +219,8 @@ fn existing_sweep(dir: &Path, path: &Path, index: &Index) -> Result<bool, Vec<Di
             NEW_HELP,
         )),
         Existing::Folder => {
-            let partial = |name: &str| name.starts_with(".rsasim-") && name.ends_with(".partial");
             let empty = std::fs::read_dir(path).is_ok_and(|mut d| {
-                d.all(|e| e.is_ok_and(|e| partial(&e.file_name().to_string_lossy())))
+                d.all(|e| e.is_ok_and(|e| is_partial(&e.file_name().to_string_lossy())))
             });
             if empty {
                 return Ok(false);
