@@ -312,7 +312,8 @@ pub enum Command {
     /// them into DIR/points/ and run each into DIR/<point id>/ as `rsasim POINT.toml --out
     /// DIR/<point id>` would. Every point shares the base scenario's seed (common random numbers)
     /// unless the sweep varies `seed`. Run again on the same DIR, a stopped sweep resumes: complete
-    /// points are kept, missing ones run.
+    /// points are kept, missing ones run. On a cluster: one `--shard K/N` task per shard, then
+    /// `--merge`.
     Sweep {
         /// The sweep file (TOML), e.g. scenarios/sweeps/tube_angle.toml.
         file: PathBuf,
@@ -329,6 +330,29 @@ pub enum Command {
         /// `rsasim sweep` on the same folder runs only the points still missing.
         #[arg(long)]
         no_run: bool,
+        /// Write only task K of N of the sweep (K from 0 to N − 1): one shard of every point, into
+        /// DIR/shards/<point id>/shard-j-of-N/, byte for byte as `rsasim DIR/points/<point
+        /// id>.toml --shard j/N` writes it. The tasks deal the runs of all points in sweep order
+        /// round robin (run g of the whole sweep to task g mod N), so task K writes shard
+        /// j = (K − runs before the point) mod N of each point. The tasks may run at once into one
+        /// DIR on a shared file system: the sweep's own files are written once and checked by the
+        /// others, each shard folder has its own lock. `auto`: K and N from SLURM or Kubernetes,
+        /// as for a scenario's --shard. A finished shard is left as it is; a point already
+        /// complete in DIR/<point id> needs none. Then `--merge`.
+        #[arg(long, value_name = "K/N|auto", value_parser = ShardRequest::parse, conflicts_with_all = ["no_run", "evaluate", "merge"])]
+        shard: Option<ShardRequest>,
+        /// The number of shards N: for `--shard auto` in a Kubernetes Indexed Job (its
+        /// .spec.completions); with --merge, which split to merge when a point's shard folder
+        /// holds several.
+        #[arg(long, value_name = "N", value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+        shard_count: Option<usize>,
+        /// Merge a sharded sweep: check every point's shards in DIR/shards/<point id>/ as
+        /// `rsasim merge` checks them (a missing shard names its point and runs; any problem:
+        /// exit 2, nothing written), then join each into DIR/<point id>/, byte for byte the
+        /// folder an unsharded sweep writes (files hard-linked). Points already complete are
+        /// kept. With --evaluate, then reconstruct and evaluate as an unsharded sweep.
+        #[arg(long, conflicts_with = "no_run")]
+        merge: bool,
         /// What the base scenario may read and use beyond the defaults (--allow-large also lifts
         /// the cap of 1000 points).
         #[command(flatten)]

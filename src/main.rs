@@ -53,8 +53,24 @@ fn main() -> ExitCode {
             out,
             evaluate,
             no_run,
+            shard,
+            shard_count,
+            merge,
             allow,
-        }) => sweep(&file, &out, evaluate, no_run, &allow.into()),
+        }) => {
+            let allow = allow.into();
+            match (shard, merge) {
+                (Some(request), _) => sweep_shard(&file, &out, request, shard_count, &allow),
+                (None, true) => sweep_merge(&file, &out, shard_count, evaluate, &allow),
+                (None, false) if shard_count.is_some() => {
+                    eprintln!(
+                        "error: --shard-count is for a sharded sweep's tasks (--shard) and its --merge\n  = help: add --shard auto (or K/N), or --merge, or drop --shard-count"
+                    );
+                    Err(2)
+                }
+                (None, false) => sweep(&file, &out, evaluate, no_run, &allow),
+            }
+        }
         Some(Command::Export {
             out,
             to,
@@ -211,53 +227,70 @@ fn report_errors(errors: &[Diagnostic]) -> u8 {
     2
 }
 
+/// The shard of `--shard` (`auto`: from the environment), or exit 2 with the reason.
+fn resolve_shard(
+    request: rsasim::shard::ShardRequest,
+    shard_count: Option<usize>,
+) -> Result<(rsasim::shard::ShardSpec, String), u8> {
+    let vars: std::collections::HashMap<String, String> = std::env::vars().collect();
+    rsasim::shard::env::resolve(request, shard_count, &vars).map_err(|e| {
+        eprintln!(
+            "error: {}\n  = help: {}\n\nrsasim: 1 error(s); nothing was written",
+            e.message, e.help
+        );
+        2
+    })
+}
+
 /// The default command: the shard (if any) decided first, then the scenario checked and run.
 fn run_scenario(args: cli::RunArgs) -> Result<(), u8> {
     let scenario = args.scenario.expect("clap requires a scenario");
     let shard = args
         .shard
-        .map(|request| {
-            let vars: std::collections::HashMap<String, String> = std::env::vars().collect();
-            rsasim::shard::env::resolve(request, args.shard_count, &vars).map_err(|e| {
-                eprintln!(
-                    "error: {}\n  = help: {}\n\nrsasim: 1 error(s); nothing was written",
-                    e.message, e.help
-                );
-                2
-            })
-        })
+        .map(|request| resolve_shard(request, args.shard_count))
         .transpose()?;
     let mut plan = prepare(&scenario, &args.allow.into())?;
     plan.previews = args.preview.is_some();
-    let out = match shard {
-        None => args.out,
+    match shard {
+        None => run(&plan, args.out, args.truth_dir.as_deref(), args.force),
         Some((spec, from)) => {
-            plan.shard = Some(spec);
             let base = args.out.unwrap_or_else(|| {
                 std::path::Path::new("out").join(format!("{}-shards", plan.loaded.scenario.name))
             });
-            let out = base.join(spec.folder_name());
-            let held = plan.written_runs().len();
-            eprintln!(
-                "rsasim: shard {spec} ({from}): {held} of {} run(s){}",
-                plan.runs.len(),
-                if held == 0 {
-                    "; this shard holds no run (more shards than runs): its folder gets the shared files and a manifest only"
-                } else {
-                    ""
-                }
-            );
-            if simulate::finished_shard(&plan, &out) {
-                eprintln!(
-                    "rsasim: {} already holds this shard, complete and verified (same scenario, build and shard): nothing to do",
-                    out.display()
-                );
-                return Ok(());
-            }
-            Some(out)
+            write_shard(&mut plan, spec, &from, &base, args.force)
         }
-    };
-    run(&plan, out, args.truth_dir.as_deref(), args.force)
+    }
+}
+
+/// Writes shard `spec` of `plan` into `base/shard-K-of-N/`, unless that folder already holds it
+/// complete (a requeued task, a replaced pod): then nothing is written.
+fn write_shard(
+    plan: &mut Plan,
+    spec: rsasim::shard::ShardSpec,
+    from: &str,
+    base: &std::path::Path,
+    force: bool,
+) -> Result<(), u8> {
+    plan.shard = Some(spec);
+    let out = base.join(spec.folder_name());
+    let held = plan.written_runs().len();
+    eprintln!(
+        "rsasim: shard {spec} ({from}): {held} of {} run(s){}",
+        plan.runs.len(),
+        if held == 0 {
+            "; this shard holds no run (more shards than runs): its folder gets the shared files and a manifest only"
+        } else {
+            ""
+        }
+    );
+    if simulate::finished_shard(plan, &out) {
+        eprintln!(
+            "rsasim: {} already holds this shard, complete and verified (same scenario, build and shard): nothing to do",
+            out.display()
+        );
+        return Ok(());
+    }
+    run(plan, Some(out), None, force)
 }
 
 fn run(
@@ -666,6 +699,54 @@ fn reconstruct_any(
     worst
 }
 
+/// Writes the sweep folder's own files (sweep.json, the sweep file's copy, the point scenarios
+/// and their inputs), each once; a file there with other bytes is an input error (exit 2).
+fn write_points(
+    folder: &rsasim::sweep::SweepFolder,
+    sweep: &rsasim::sweep::Sweep,
+    out: &std::path::Path,
+) -> Result<(), u8> {
+    folder.write_points(sweep).map_err(|e| match e {
+        rsasim::sweep::WriteError::Input(errors) => report_errors(&errors),
+        rsasim::sweep::WriteError::Io(e) => {
+            eprintln!(
+                "error: writing the point scenarios into {} failed: {e}",
+                out.display()
+            );
+            1
+        }
+    })
+}
+
+/// Prepares the sweep of `file` (errors: exit 2, nothing written), takes its folder `out`
+/// (claimed with its lock, or joined as one task of a sharded sweep) and writes the sweep's own
+/// files.
+fn open_sweep(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    allow: &simulate::Allowances,
+    as_task: bool,
+) -> Result<(rsasim::sweep::Sweep, rsasim::sweep::SweepFolder), u8> {
+    let sweep = rsasim::sweep::prepare(file, allow).map_err(|e| report_errors(&e))?;
+    let folder = if as_task {
+        rsasim::sweep::join(&sweep, out)
+    } else {
+        rsasim::sweep::claim(&sweep, out)
+    }
+    .map_err(|e| report_errors(&e))?;
+    write_points(&folder, &sweep, out)?;
+    Ok((sweep, folder))
+}
+
+/// What the point scenarios may read: only their own folder's copies of the base scenario's
+/// files.
+fn point_allowances(allow: &simulate::Allowances) -> simulate::Allowances {
+    simulate::Allowances {
+        dirs: Vec::new(),
+        large: allow.large,
+    }
+}
+
 /// `rsasim sweep`: prepares every point (errors: exit 2, nothing written), claims the sweep
 /// folder, writes the point scenarios, then runs every pending point with the main command's own
 /// `prepare` and `run`, exactly as `rsasim DIR/points/<id>.toml --out DIR/<id>`; with
@@ -678,15 +759,7 @@ fn sweep(
     allow: &simulate::Allowances,
 ) -> Result<(), u8> {
     let start = Instant::now();
-    let sweep = rsasim::sweep::prepare(file, allow).map_err(|e| report_errors(&e))?;
-    let folder = rsasim::sweep::claim(&sweep, out).map_err(|e| report_errors(&e))?;
-    folder.write_points(&sweep).map_err(|e| {
-        eprintln!(
-            "error: writing the point scenarios into {} failed: {e}",
-            out.display()
-        );
-        1
-    })?;
+    let (sweep, folder) = open_sweep(file, out, allow, false)?;
     if no_run {
         eprintln!(
             "rsasim sweep: {} point scenario(s) written to {}; run each with `rsasim {}/<id>.toml --out {}/<id>`",
@@ -697,11 +770,7 @@ fn sweep(
         );
         return Ok(());
     }
-    // The points read only their own folder's copies of the base scenario's files.
-    let point_allow = simulate::Allowances {
-        dirs: Vec::new(),
-        large: allow.large,
-    };
+    let point_allow = point_allowances(allow);
     let n = sweep.points.len();
     for (k, (point, done)) in sweep.points.iter().zip(&folder.done).enumerate() {
         let what = sweep.assignments(point);
@@ -722,6 +791,12 @@ fn sweep(
         start.elapsed().as_secs_f64(),
         out.display()
     );
+    finish_sweep(out, evaluate_too)
+}
+
+/// The end of a sweep whose every point is complete: with `evaluate_too`, `rsasim reconstruct`
+/// (default methods) on every point and `rsasim evaluate` on the sweep; otherwise how to.
+fn finish_sweep(out: &std::path::Path, evaluate_too: bool) -> Result<(), u8> {
     if !evaluate_too {
         eprintln!(
             "reconstruct and score them with `rsasim reconstruct {0}` and `rsasim evaluate {0}`",
@@ -747,6 +822,141 @@ fn sweep(
         rsasim::evaluate::study::StudyOptions::default(),
     )?;
     reconstructed
+}
+
+/// `rsasim sweep --shard K/N|auto`: one task of a sharded sweep. The shard is decided and every
+/// point prepared first (errors: exit 2, nothing written); the task then joins the sweep folder
+/// (which other tasks may be writing at the same time), writes or checks the sweep's own files,
+/// and writes its shard of every point not already complete ([`rsasim::sweep::split`]), each as
+/// `rsasim DIR/points/<id>.toml --shard j/N --out DIR/shards/<id>` would.
+fn sweep_shard(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    request: rsasim::shard::ShardRequest,
+    shard_count: Option<usize>,
+    allow: &simulate::Allowances,
+) -> Result<(), u8> {
+    let start = Instant::now();
+    let (task, from) = resolve_shard(request, shard_count)?;
+    let (sweep, folder) = open_sweep(file, out, allow, true)?;
+    let counts: Vec<usize> = sweep.points.iter().map(|p| p.runs).collect();
+    let shards = rsasim::sweep::split::point_shards(&counts, task);
+    let total: usize = counts.iter().sum();
+    let held: usize = counts
+        .iter()
+        .zip(&shards)
+        .zip(&folder.done)
+        .filter(|(_, done)| !**done)
+        .map(|((&runs, spec), _)| spec.runs(runs).len())
+        .sum();
+    eprintln!(
+        "rsasim sweep: task {task} ({from}): {held} of the sweep's {total} run(s), one shard of each of {} point(s)",
+        sweep.points.len()
+    );
+    let point_allow = point_allowances(allow);
+    let n = sweep.points.len();
+    for (k, ((point, done), spec)) in sweep
+        .points
+        .iter()
+        .zip(&folder.done)
+        .zip(&shards)
+        .enumerate()
+    {
+        let what = sweep.assignments(point);
+        if *done {
+            eprintln!(
+                "rsasim sweep: point {} ({}/{n}) is complete in {}, needs no shard: {what}",
+                point.id,
+                k + 1,
+                folder.point_out(&point.id).display()
+            );
+            continue;
+        }
+        eprintln!("rsasim sweep: point {} ({}/{n}): {what}", point.id, k + 1);
+        let mut plan = prepare(&folder.point_scenario(&point.id), &point_allow)?;
+        if plan.runs.len() != point.runs {
+            eprintln!(
+                "error: point {} expands to {} run(s), not the {} the sweep counted: a bug in rsasim; nothing of this point was written",
+                point.id,
+                plan.runs.len(),
+                point.runs
+            );
+            return Err(1);
+        }
+        write_shard(
+            &mut plan,
+            *spec,
+            &format!("task {task} of the sweep"),
+            &folder.point_shards(&point.id),
+            false,
+        )?;
+    }
+    eprintln!(
+        "rsasim sweep: task {task}: {n} point(s) in {:.1} s -> {}; when every task is done, `rsasim sweep {} --out {} --merge`",
+        start.elapsed().as_secs_f64(),
+        out.join(rsasim::sweep::folder::SHARDS_DIR).display(),
+        file.display(),
+        out.display()
+    );
+    Ok(())
+}
+
+/// `rsasim sweep --merge`: the sweep prepared and its folder claimed (the lock held), every
+/// point's shards checked (every problem of every point reported; exit 2, nothing written),
+/// every point's output folder claimed, then each point merged; with `evaluate_too`,
+/// reconstructed and evaluated as an unsharded sweep.
+fn sweep_merge(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    shard_count: Option<usize>,
+    evaluate_too: bool,
+    allow: &simulate::Allowances,
+) -> Result<(), u8> {
+    use rsasim::output::merge;
+    let start = Instant::now();
+    let (sweep, folder) = open_sweep(file, out, allow, false)?;
+    let points =
+        rsasim::sweep::merge::check(&sweep, &folder, shard_count).map_err(|e| report_errors(&e))?;
+    let mut targets = Vec::with_capacity(points.len());
+    for p in &points {
+        for path in &p.shards.not_merged {
+            eprintln!("rsasim: not merged (no manifest lists it): {path}");
+        }
+        targets.push(merge::claim(&p.shards, &p.out, false).map_err(|e| report_errors(&e))?);
+    }
+    let kept = sweep.points.len() - points.len();
+    if kept > 0 {
+        eprintln!("rsasim sweep: {kept} point(s) complete from an earlier run or merge, kept");
+    }
+    for (p, target) in points.into_iter().zip(targets) {
+        target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+        let (count, runs) = (p.shards.count(), p.shards.runs());
+        let summary = merge::assemble(p.shards, target, false).map_err(|e| match e {
+            merge::Error::Input(errors) => report_errors(&errors),
+            merge::Error::Write(why) => {
+                eprintln!(
+                    "error: writing {} failed: {why}\n  = note: nothing was replaced; the points merged before it are complete",
+                    p.out.display()
+                );
+                1
+            }
+        })?;
+        summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+        eprintln!(
+            "rsasim sweep: point {}: {count} shard(s), {runs} run(s), {} file(s) merged -> {}",
+            p.id,
+            summary.linked + summary.copied,
+            summary.out_dir.display()
+        );
+    }
+    eprintln!(
+        "rsasim sweep: {} point(s) complete in {:.1} s -> {} (the shards in {} may be deleted)",
+        sweep.points.len(),
+        start.elapsed().as_secs_f64(),
+        out.display(),
+        out.join(rsasim::sweep::folder::SHARDS_DIR).display()
+    );
+    finish_sweep(out, evaluate_too)
 }
 
 fn schema(name: &str, write_dir: Option<&std::path::Path>) -> Result<(), u8> {

@@ -328,6 +328,28 @@ fn sweep_points_are_ordered_and_named_as_documented() {
 }
 
 #[test]
+fn a_sharded_sweeps_tasks_write_the_documented_shards() {
+    states("task K writes shard `j = (K − o_p) mod N` of every point p");
+    use rsasim::shard::ShardSpec;
+    let runs = [3, 5, 2, 7];
+    for n in [1, 2, 3, 4, 9] {
+        for k in 0..n {
+            let got = rsasim::sweep::split::point_shards(&runs, ShardSpec::new(k, n).unwrap());
+            let mut o_p = 0;
+            for (p, &r) in runs.iter().enumerate() {
+                let j = (k + n * o_p - o_p) % n;
+                assert_eq!(
+                    got[p],
+                    ShardSpec::new(j, n).unwrap(),
+                    "K = {k}, N = {n}, p = {p}"
+                );
+                o_p += r;
+            }
+        }
+    }
+}
+
+#[test]
 fn study_stream_labels_and_run_ids_are_the_documented_ones() {
     states("`rsasim/study/v1/{seed}/{patient}/{exam}`");
     states("`rsasim/study/v1/{seed}/{patient}`");

@@ -1,7 +1,7 @@
 //! The cluster files in `deploy/`: the Kubernetes manifests pass a schema check of the Kubernetes
 //! API (`kubernetes-validate` from PyPI, which ships the schemas: no cluster needed), and they
 //! agree with themselves and with rsasim (the shard count is the Job's completions; the merge
-//! takes that split's shards). The SLURM scripts parse; `deploy/slurm/selftest.sh` runs them on a
+//! takes that split's shards; the sweep's merge names the same sweep, folder and split). The SLURM scripts parse; `deploy/slurm/selftest.sh` runs them on a
 //! real single-node SLURM cluster (`.ci/run` calls it).
 //!
 //! A tool that is missing fails the test when `CI` is set; otherwise the test prints a loud
@@ -12,9 +12,11 @@ mod common;
 use std::path::PathBuf;
 use std::process::Command;
 
-const MANIFESTS: [&str; 2] = [
+const MANIFESTS: [&str; 4] = [
     "deploy/k8s/rsasim-shards.yaml",
     "deploy/k8s/rsasim-merge.yaml",
+    "deploy/k8s/rsasim-sweep-shards.yaml",
+    "deploy/k8s/rsasim-sweep-merge.yaml",
 ];
 
 /// The `kubernetes-validate` command, or `None` (fails under CI, SKIPPED otherwise).
@@ -89,23 +91,45 @@ fn value_of(yaml: &str, key: &str) -> String {
         .to_string()
 }
 
-#[test]
-fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
-    let job = text(MANIFESTS[0]);
-    assert_eq!(value_of(&job, "completionMode"), "Indexed");
-    let completions = value_of(&job, "completions");
-    let args: Vec<String> = job
-        .lines()
+/// The container's `args:` list (quotes removed).
+fn args_of(yaml: &str) -> Vec<String> {
+    yaml.lines()
         .map(str::trim)
         .skip_while(|l| *l != "args:")
         .skip(1)
         .take_while(|l| l.starts_with("- "))
         .map(|l| l[2..].trim_matches('"').to_string())
-        .collect();
-    let after = |flag: &str| {
-        let i = args.iter().position(|a| a == flag).unwrap();
-        args[i + 1].clone()
-    };
+        .collect()
+}
+
+/// The value after `flag` in `args`.
+fn after(args: &[String], flag: &str) -> String {
+    let i = args
+        .iter()
+        .position(|a| a == flag)
+        .unwrap_or_else(|| panic!("no {flag} in {args:?}"));
+    args[i + 1].clone()
+}
+
+/// Runs `rsasim ARGS --shard auto --shard-count COMPLETIONS --out OUT` as the pod of index
+/// completions − 1 would, asserts it succeeds, and returns that index.
+fn in_last_pod(completions: &str, args: &[&str], out: &std::path::Path) -> String {
+    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
+    let mut all = args.to_vec();
+    all.extend(["--shard", "auto", "--shard-count", completions]);
+    all.extend(["--out", out.to_str().unwrap()]);
+    let o = common::rsasim(&all, &[("JOB_COMPLETION_INDEX", &last)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    last
+}
+
+#[test]
+fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
+    let job = text(MANIFESTS[0]);
+    assert_eq!(value_of(&job, "completionMode"), "Indexed");
+    let completions = value_of(&job, "completions");
+    let args = args_of(&job);
+    let after = |flag: &str| after(&args, flag);
     assert_eq!(after("--shard"), "auto");
     assert_eq!(after("--shard-count"), completions);
     let merge = text(MANIFESTS[1]);
@@ -115,27 +139,62 @@ fn the_indexed_job_and_the_merge_agree_on_the_number_of_shards() {
     );
     // The same arguments in a pod of index completions − 1 are accepted and write that shard.
     let tmp = tempfile::tempdir().unwrap();
-    let last = (completions.parse::<usize>().unwrap() - 1).to_string();
     let out = tmp.path().join("shards");
-    let o = common::rsasim(
+    let last = in_last_pod(
+        &completions,
         &[
             "tests/scenarios/shards.toml",
-            "--shard",
-            "auto",
-            "--shard-count",
-            &completions,
-            "--out",
-            out.to_str().unwrap(),
             common::ALLOW_MODELS[0],
             common::ALLOW_MODELS[1],
         ],
-        &[("JOB_COMPLETION_INDEX", &last)],
+        &out,
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
         out.join(format!("shard-{last}-of-{completions}/manifest.json"))
             .is_file()
     );
+}
+
+#[test]
+fn the_sweeps_indexed_job_and_its_merge_agree() {
+    let job = text(MANIFESTS[2]);
+    assert_eq!(value_of(&job, "completionMode"), "Indexed");
+    let completions = value_of(&job, "completions");
+    assert_eq!(value_of(&job, "parallelism"), completions);
+    let args = args_of(&job);
+    assert_eq!(args[0], "sweep");
+    assert_eq!(after(&args, "--shard"), "auto");
+    assert_eq!(after(&args, "--shard-count"), completions);
+    // The sweep file is the repository's, copied to the volume's root.
+    let file = args[1].strip_prefix("/data/").unwrap();
+    assert!(common::root().join(file).is_file(), "{file}");
+    // The merge: the same sweep and folder, this split, then the evaluation.
+    let merge = args_of(&text(MANIFESTS[3]));
+    assert_eq!(merge[..2], args[..2]);
+    assert_eq!(after(&merge, "--out"), after(&args, "--out"));
+    assert_eq!(after(&merge, "--shard-count"), completions);
+    assert!(merge.iter().any(|a| a == "--merge") && merge.iter().any(|a| a == "--evaluate"));
+    // The task arguments in the pod of index completions − 1, on the small test sweep: one
+    // shard of every point, of this split.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sweep");
+    in_last_pod(
+        &completions,
+        &["sweep", "tests/scenarios/sweeps/small_angle.toml"],
+        &out,
+    );
+    for point in ["p00", "p01", "p02"] {
+        let shards: Vec<String> = std::fs::read_dir(out.join("shards").join(point))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("shard-"))
+            .collect();
+        assert_eq!(shards.len(), 1, "{point}: {shards:?}");
+        assert!(
+            shards[0].ends_with(&format!("-of-{completions}")),
+            "{shards:?}"
+        );
+    }
 }
 
 #[test]
@@ -144,6 +203,9 @@ fn the_slurm_scripts_parse() {
         "deploy/slurm/rsasim-shard.sbatch",
         "deploy/slurm/rsasim-merge.sbatch",
         "deploy/slurm/submit.sh",
+        "deploy/slurm/rsasim-sweep-shard.sbatch",
+        "deploy/slurm/rsasim-sweep-merge.sbatch",
+        "deploy/slurm/submit-sweep.sh",
         "deploy/slurm/selftest.sh",
     ] {
         let o = Command::new("bash")
@@ -161,4 +223,13 @@ fn the_slurm_scripts_parse() {
     // The array task takes its shard from SLURM, the merge only this split's shards.
     assert!(text("deploy/slurm/rsasim-shard.sbatch").contains("--shard auto --out \"$shards\""));
     assert!(text("deploy/slurm/rsasim-merge.sbatch").contains("shard-*-of-\"$count\""));
+    // A sweep's task takes its task from SLURM, its merge only this split, then evaluates.
+    assert!(
+        text("deploy/slurm/rsasim-sweep-shard.sbatch")
+            .contains("sweep \"$sweep\" --out \"$dir\" --shard auto")
+    );
+    assert!(
+        text("deploy/slurm/rsasim-sweep-merge.sbatch")
+            .contains("--merge --shard-count \"$count\" --evaluate")
+    );
 }

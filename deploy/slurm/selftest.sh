@@ -2,7 +2,11 @@
 # SLURM self-test: a real single-node SLURM cluster on localhost runs a 4-task array job of a
 # small scenario with deploy/slurm/rsasim-shard.sbatch and the dependent merge job of
 # deploy/slurm/rsasim-merge.sbatch; the merged folder must equal the single-machine run byte for
-# byte (every file, manifest.json included) and verify.
+# byte (every file, manifest.json included) and verify. At the same time it runs a small sweep
+# (3 points × 3 runs) as a 3-task array of deploy/slurm/rsasim-sweep-shard.sbatch, all tasks
+# writing into one sweep folder, and the dependent merge-and-evaluate job of
+# deploy/slurm/rsasim-sweep-merge.sbatch; the sweep folder must equal the unsharded
+# `rsasim sweep --evaluate` byte for byte (every file but the shards and the lock files).
 #
 #   deploy/slurm/selftest.sh            (as root: installs slurm-wlm and munge when missing)
 #
@@ -15,6 +19,7 @@ set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$repo"
 scenario=tests/scenarios/shards.toml
+sweep=tests/scenarios/sweeps/small_angle.toml
 timeout=${SELFTEST_TIMEOUT:-300}
 
 if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! command -v munged >/dev/null; then
@@ -147,9 +152,18 @@ merge=$(sbatch --parsable --chdir="$work/jobs" --cpus-per-task=1 --dependency=af
     --output="$work/jobs/merge.log" deploy/slurm/rsasim-merge.sbatch "$shards" 4 "$merged")
 merge=${merge%%;*}
 echo "selftest: submitted array job $array (4 tasks) and merge job $merge"
+swept=$work/sweep
+sweep_array=$(sbatch --parsable --chdir="$work/jobs" --cpus-per-task=1 --array=0-2 \
+    --output="$work/jobs/sweep-shard-%a.log" \
+    deploy/slurm/rsasim-sweep-shard.sbatch "$repo/$sweep" "$swept")
+sweep_array=${sweep_array%%;*}
+sweep_merge=$(sbatch --parsable --chdir="$work/jobs" --cpus-per-task=1 --dependency=afterok:"$sweep_array" \
+    --output="$work/jobs/sweep-merge.log" deploy/slurm/rsasim-sweep-merge.sbatch "$repo/$sweep" "$swept" 3)
+sweep_merge=${sweep_merge%%;*}
+echo "selftest: submitted sweep array job $sweep_array (3 tasks) and merge-and-evaluate job $sweep_merge"
 
 deadline=$((SECONDS + timeout))
-while [ -n "$(squeue -h -j "$array,$merge" -o '%i' 2>/dev/null)" ]; do
+while [ -n "$(squeue -h -j "$array,$merge,$sweep_array,$sweep_merge" -o '%i' 2>/dev/null)" ]; do
     if [ $SECONDS -ge $deadline ]; then
         echo "selftest: the jobs did not finish within $timeout s" >&2
         squeue -l >&2 || true
@@ -166,6 +180,15 @@ if [ "$merge_state" != "JobState=COMPLETED" ]; then
     exit 1
 fi
 grep -h "rsasim merge:" "$work/jobs/merge.log"
+sweep_states=$(scontrol -o show job "$sweep_array" | grep -o 'JobState=[A-Z_]*' | sort | uniq -c | tr -s ' ')
+sweep_merge_state=$(scontrol -o show job "$sweep_merge" | grep -o 'JobState=[A-Z_]*')
+echo "selftest: sweep array tasks:$sweep_states; sweep merge: $sweep_merge_state"
+if [ "$sweep_merge_state" != "JobState=COMPLETED" ]; then
+    echo "selftest: the sweep's merge job did not complete" >&2
+    cat "$work"/jobs/sweep-*.log >&2 || true
+    exit 1
+fi
+grep -h "rsasim evaluate: sweep" "$work/jobs/sweep-merge.log"
 
 # The single-machine run, then byte for byte.
 "$rsasim" "$scenario" --out "$work/single" --allow-dir scenarios/models 2>&1 | tail -n 1
@@ -173,3 +196,10 @@ ls "$shards"
 diff -r "$work/single" "$merged"
 "$rsasim" verify "$merged" | tail -n 1
 echo "selftest: PASSED: 4 SLURM array tasks + merge job = the single run, byte for byte ($(find "$merged" -type f | wc -l) files)"
+
+# The unsharded sweep, evaluated, then byte for byte (the shards and the lock files, which hold
+# process ids, aside).
+"$rsasim" sweep "$sweep" --out "$work/sweep-single" --evaluate 2>&1 | tail -n 1
+ls "$swept/shards"/*
+diff -r -x shards -x '*.rsasim-lock' "$work/sweep-single" "$swept"
+echo "selftest: PASSED: 3 SLURM sweep tasks + merge-and-evaluate job = the unsharded sweep, byte for byte ($(find "$swept" -path "$swept/shards" -prune -o -type f ! -name '*.rsasim-lock' -print | wc -l) files)"

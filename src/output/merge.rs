@@ -47,6 +47,11 @@ impl Shards {
         self.dirs.len()
     }
 
+    /// The SHA-256 of the scenario the shards were written from.
+    pub fn scenario_sha256(&self) -> Option<&str> {
+        self.manifest.scenario_sha256.as_deref()
+    }
+
     /// Number of runs of the merged folder.
     pub fn runs(&self) -> usize {
         self.manifest.runs

@@ -48,6 +48,20 @@ impl ShardSpec {
     }
 }
 
+impl ShardSpec {
+    /// The shard a folder name `shard-K-of-N` names, exactly as [`ShardSpec::folder_name`] writes
+    /// it (K padded to the width of N − 1); `None` for any other name.
+    pub fn from_folder_name(name: &str) -> Option<ShardSpec> {
+        let (k, n) = name.strip_prefix("shard-")?.split_once("-of-")?;
+        let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+        if !digits(k) || !digits(n) {
+            return None;
+        }
+        let spec = ShardSpec::new(k.parse().ok()?, n.parse().ok()?)?;
+        (spec.folder_name() == name).then_some(spec)
+    }
+}
+
 impl fmt::Display for ShardSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}/{}", self.index, self.count)
@@ -125,5 +139,27 @@ mod tests {
         assert_eq!(spec(0, 1).folder_name(), "shard-0-of-1");
         assert_eq!(spec(7, 101).folder_name(), "shard-007-of-101");
         assert_eq!(spec(2, 7).to_string(), "2/7");
+        for (k, n) in [(0, 1), (3, 4), (3, 12), (11, 12), (7, 101)] {
+            let name = spec(k, n).folder_name();
+            assert_eq!(
+                ShardSpec::from_folder_name(&name),
+                Some(spec(k, n)),
+                "{name}"
+            );
+        }
+        for other in [
+            "shard-3-of-12",
+            "shard-003-of-12",
+            "shard-4-of-4",
+            "shard-0-of-0",
+            "shard--1-of-4",
+            "shard-+1-of-4",
+            "shard-1-of-4x",
+            "shard-1-of-",
+            ".shard-1-of-4",
+            "p00",
+        ] {
+            assert_eq!(ShardSpec::from_folder_name(other), None, "{other}");
+        }
     }
 }

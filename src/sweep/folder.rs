@@ -8,6 +8,7 @@
 //!   points/<id>.toml    each point's scenario, standalone
 //!   points/inputs/      the meshes (and spectra) the points read
 //!   <id>/               each point's output folder (the main command's layout)
+//!   shards/<id>/        a sharded sweep's shards of each point (shard-K-of-N/), until merged
 //!   sweep-report/       the summary (`rsasim evaluate DIR`, `rsasim sweep … --evaluate`)
 //! ```
 
@@ -17,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::prepare::{INPUTS_DIR, POINTS_DIR, Sweep};
 use crate::diagnostic::Diagnostic;
-use crate::output::atomic::write_atomic;
+use crate::output::atomic::{Once, is_partial, write_once};
 use crate::output::commit::guard::{self, Existing};
 use crate::output::commit::lock::{LockError, OutputLock};
 use crate::scenario::hex;
@@ -30,6 +31,8 @@ pub const FORMAT: &str = "rsasim-sweep/1";
 pub const SWEEP_COPY: &str = "sweep.toml";
 /// The summary folder's default name.
 pub const REPORT_DIR: &str = "sweep-report";
+/// The folder of a sharded sweep's shards: `shards/<point id>/shard-K-of-N/`.
+pub const SHARDS_DIR: &str = "shards";
 
 /// `sweep.json`: what the sweep folder holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -165,14 +168,80 @@ pub fn read_index(dir: &Path) -> Result<Index, Vec<Diagnostic>> {
     Ok(index)
 }
 
-/// A sweep folder claimed by this process (its lock is held until dropped).
+/// A sweep folder claimed by this process (with the lock on it, held until dropped), or joined
+/// by one task of a sharded sweep (without).
 pub struct SweepFolder {
-    _lock: OutputLock,
+    _lock: Option<OutputLock>,
     /// The folder.
     pub dir: PathBuf,
     /// Per point: its output is already there, complete, from an earlier run of the same sweep.
     pub done: Vec<bool>,
     index: Index,
+}
+
+/// Why the sweep folder's own files were not written.
+#[derive(Debug)]
+pub enum WriteError {
+    /// A file there holds other bytes than this sweep writes (exit 2).
+    Input(Vec<Diagnostic>),
+    /// The file system failed (exit 1).
+    Io(std::io::Error),
+}
+
+fn refusal(dir: &Path, message: String, help: &str) -> Vec<Diagnostic> {
+    vec![Diagnostic::file_error(dir, message).with_help(help)]
+}
+
+const NEW_HELP: &str =
+    "give a new folder with --out (rsasim never writes into a folder it did not make)";
+
+/// Whether the existing sweep folder `path` holds the sweep of `index` (`Ok(true)`), is absent or
+/// empty (`Ok(false)`), or is something else (refused). Temporary files of a writer that is
+/// still placing its files ([`write_once`]) do not count.
+fn existing_sweep(dir: &Path, path: &Path, index: &Index) -> Result<bool, Vec<Diagnostic>> {
+    let existing = guard::existing(path).map_err(|e| {
+        refusal(
+            dir,
+            format!("cannot look at the sweep folder: {e}"),
+            NEW_HELP,
+        )
+    })?;
+    match existing {
+        Existing::Absent => Ok(false),
+        Existing::Symlink => Err(refusal(
+            dir,
+            "the sweep folder is a symbolic link; rsasim never writes through a link".into(),
+            NEW_HELP,
+        )),
+        Existing::NotFolder => Err(refusal(
+            dir,
+            "the sweep folder names a file".into(),
+            NEW_HELP,
+        )),
+        Existing::Folder => {
+            let empty = std::fs::read_dir(path).is_ok_and(|mut d| {
+                d.all(|e| e.is_ok_and(|e| is_partial(&e.file_name().to_string_lossy())))
+            });
+            if empty {
+                return Ok(false);
+            }
+            match std::fs::read(path.join(INDEX)) {
+                Ok(bytes) if bytes == index.to_bytes() => Ok(true),
+                Ok(_) => Err(refusal(
+                    dir,
+                    format!(
+                        "the folder holds another sweep (its {INDEX} differs: another sweep file, base scenario or program version)"
+                    ),
+                    NEW_HELP,
+                )),
+                Err(_) => Err(refusal(
+                    dir,
+                    format!("the folder exists and is not a sweep folder (no {INDEX})"),
+                    NEW_HELP,
+                )),
+            }
+        }
+    }
 }
 
 /// Claims `dir` for `sweep`: a new or empty folder, or the folder of an earlier run of the same
@@ -182,63 +251,26 @@ pub struct SweepFolder {
 /// `.<name>.rsasim-lock` beside it keeps a second sweep out.
 pub fn claim(sweep: &Sweep, dir: &Path) -> Result<SweepFolder, Vec<Diagnostic>> {
     let resolved = guard::resolve(dir).map_err(|d| vec![*d])?;
-    let refuse =
-        |message: String, help: &str| vec![Diagnostic::file_error(dir, message).with_help(help)];
     let index = Index::of(sweep);
-    let new_help =
-        "give a new folder with --out (rsasim never writes into a folder it did not make)";
-    let existing = guard::existing(&resolved.path)
-        .map_err(|e| refuse(format!("cannot look at the sweep folder: {e}"), new_help))?;
-    let resume = match existing {
-        Existing::Absent => false,
-        Existing::Symlink => {
-            return Err(refuse(
-                "the sweep folder is a symbolic link; rsasim never writes through a link".into(),
-                new_help,
-            ));
-        }
-        Existing::NotFolder => {
-            return Err(refuse("the sweep folder names a file".into(), new_help));
-        }
-        Existing::Folder => {
-            let empty = std::fs::read_dir(&resolved.path).is_ok_and(|mut d| d.next().is_none());
-            if !empty {
-                match std::fs::read(resolved.path.join(INDEX)) {
-                    Ok(bytes) if bytes == index.to_bytes() => {}
-                    Ok(_) => {
-                        return Err(refuse(
-                            format!(
-                                "the folder holds another sweep (its {INDEX} differs: another sweep file, base scenario or program version)"
-                            ),
-                            new_help,
-                        ));
-                    }
-                    Err(_) => {
-                        return Err(refuse(
-                            format!("the folder exists and is not a sweep folder (no {INDEX})"),
-                            new_help,
-                        ));
-                    }
-                }
-            }
-            !empty
-        }
-    };
+    let resume = existing_sweep(dir, &resolved.path, &index)?;
     std::fs::create_dir_all(&resolved.parent).map_err(|e| {
-        refuse(
+        refusal(
+            dir,
             format!("cannot create {}: {e}", resolved.parent.display()),
             "check that the folder of --out can be written to",
         )
     })?;
     let lock = OutputLock::acquire(&resolved.parent, &resolved.name).map_err(|e| match e {
-        LockError::Busy(pid) => refuse(
+        LockError::Busy(pid) => refusal(
+            dir,
             format!(
                 "another rsasim process ({}) is writing this sweep folder",
                 pid.map_or("pid unknown".to_string(), |p| format!("pid {p}"))
             ),
             "wait for it to finish, or give another folder with --out",
         ),
-        LockError::Io(e) => refuse(
+        LockError::Io(e) => refusal(
+            dir,
             format!("cannot take the lock beside the sweep folder: {e}"),
             "check that the folder of --out can be written to",
         ),
@@ -249,7 +281,8 @@ pub fn claim(sweep: &Sweep, dir: &Path) -> Result<SweepFolder, Vec<Diagnostic>> 
         let present = resume && std::fs::symlink_metadata(&out).is_ok();
         if present {
             if let Err(why) = point_output_matches(&out, &p.scenario_sha256) {
-                return Err(refuse(
+                return Err(refusal(
+                    dir,
                     format!(
                         "{} is not the complete output of point {}: {why}",
                         out.display(),
@@ -262,7 +295,32 @@ pub fn claim(sweep: &Sweep, dir: &Path) -> Result<SweepFolder, Vec<Diagnostic>> 
         done.push(present);
     }
     Ok(SweepFolder {
-        _lock: lock,
+        _lock: Some(lock),
+        dir: dir.to_path_buf(),
+        done,
+        index,
+    })
+}
+
+/// Joins `dir` as one task of a sharded sweep (`rsasim sweep FILE --shard K/N`). The tasks of an
+/// array job write the folder at the same time, so no task locks it (each shard folder has its
+/// own lock); otherwise the rules of [`claim`] hold: a new or empty folder, or the folder of the
+/// same sweep by the same program. The sweep's own files are then written once, by whichever
+/// task comes first, and checked by the others ([`SweepFolder::write_points`]). A point whose
+/// output is already complete in `dir` (run whole, or merged) is done and needs no shard.
+pub fn join(sweep: &Sweep, dir: &Path) -> Result<SweepFolder, Vec<Diagnostic>> {
+    let resolved = guard::resolve(dir).map_err(|d| vec![*d])?;
+    let index = Index::of(sweep);
+    let resume = existing_sweep(dir, &resolved.path, &index)?;
+    let done = index
+        .points
+        .iter()
+        .map(|p| {
+            resume && point_output_matches(&resolved.path.join(&p.id), &p.scenario_sha256).is_ok()
+        })
+        .collect();
+    Ok(SweepFolder {
+        _lock: None,
         dir: dir.to_path_buf(),
         done,
         index,
@@ -283,20 +341,46 @@ fn point_output_matches(out: &Path, sha256: &str) -> Result<(), String> {
 }
 
 impl SweepFolder {
-    /// Writes the sweep file's copy, the point scenarios, the files they read and the index,
-    /// each atomically (identical bytes when the sweep resumes).
-    pub fn write_points(&self, sweep: &Sweep) -> std::io::Result<()> {
+    /// Writes the sweep's own files, each once ([`write_once`]): the index first (so a folder
+    /// rsasim is filling is either empty or names its sweep), then the sweep file's copy, the
+    /// files the points read and the point scenarios. A file already there with the same bytes
+    /// (a resumed sweep, another task of a sharded one) is left as it is; one with other bytes
+    /// is an input error naming it, and nothing there is replaced.
+    pub fn write_points(&self, sweep: &Sweep) -> Result<(), WriteError> {
+        let once = |path: PathBuf, bytes: &[u8]| -> Result<Option<Diagnostic>, WriteError> {
+            Ok((write_once(&path, bytes).map_err(WriteError::Io)? == Once::Different).then(|| {
+                Diagnostic::file_error(
+                    &path,
+                    "holds other bytes than this sweep writes there (changed after rsasim wrote it?)",
+                )
+                .with_help("move it away and run again; rsasim never replaces a file in a sweep folder")
+            }))
+        };
+        std::fs::create_dir_all(&self.dir).map_err(WriteError::Io)?;
+        if let Some(d) = once(self.dir.join(INDEX), &self.index.to_bytes())? {
+            // Another sweep was quicker into this folder: nothing of this one is written.
+            return Err(WriteError::Input(vec![d]));
+        }
         let inputs = self.dir.join(POINTS_DIR).join(INPUTS_DIR);
-        std::fs::create_dir_all(&inputs)?;
-        write_atomic(&self.dir.join(SWEEP_COPY), &sweep.file.bytes)?;
+        std::fs::create_dir_all(&inputs).map_err(WriteError::Io)?;
+        let mut differing = Vec::new();
+        differing.extend(once(self.dir.join(SWEEP_COPY), &sweep.file.bytes)?);
         for (name, bytes) in &sweep.inputs {
-            write_atomic(&inputs.join(name), bytes)?;
+            differing.extend(once(inputs.join(name), bytes)?);
         }
         for p in &sweep.points {
-            write_atomic(&self.point_scenario(&p.id), p.text.as_bytes())?;
+            differing.extend(once(self.point_scenario(&p.id), p.text.as_bytes())?);
         }
-        write_atomic(&self.dir.join(INDEX), &self.index.to_bytes())?;
-        Ok(())
+        if differing.is_empty() {
+            Ok(())
+        } else {
+            Err(WriteError::Input(differing))
+        }
+    }
+
+    /// The folder of point `id`'s shards: `DIR/shards/<id>/` (holding `shard-K-of-N/`).
+    pub fn point_shards(&self, id: &str) -> PathBuf {
+        self.dir.join(SHARDS_DIR).join(id)
     }
 
     /// The scenario file of point `id`.

@@ -45,6 +45,8 @@ pub struct Point {
     pub text: String,
     /// SHA-256 of `text`.
     pub sha256: String,
+    /// Number of runs of its protocol (or study).
+    pub runs: usize,
 }
 
 /// A sweep expanded and checked, nothing written yet.
@@ -211,6 +213,7 @@ pub fn prepare(path: &Path, allow: &Allowances) -> Result<Sweep, Vec<Diagnostic>
         scenario::from_text(&text, &shown, &base.base_dir).map_err(point_errors)?;
         points.push(Point {
             sha256: hex(&Sha256::digest(text.as_bytes())),
+            runs: usize::try_from(checked.loaded.scenario.run_count()).unwrap_or(usize::MAX),
             id,
             choice: choice.clone(),
             text,
