@@ -9,8 +9,13 @@
 //!
 //! **Open field shared.** A pixel whose path lengths are all 0 has `exp(−0) = 1` in every bin,
 //! so its sums are the open-field sums `Σ_b w_b` and `Σ_b w_b·e_b`, computed once: the same bits
-//! as the per-pixel loop would give ([`super::exp::exp`] of −0 is exactly 1). Only the other
-//! pixels are gathered, in blocks of [`LANES`] pixels, and each block runs through the bin loop
+//! as the per-pixel loop would give ([`super::exp::exp`] of −0 is exactly 1).
+//!
+//! **One material, one table.** A pixel whose only non-zero length is that of a material with a
+//! transmission table ([`super::transmission`]) takes `f·T_Q(L)` and `f·T_E(L)` from it: within
+//! 10⁻¹⁰ (relative) of the sums, at a cubic instead of one exponential per bin.
+//!
+//! Only the other pixels are gathered, in blocks of [`LANES`] pixels, and each block runs through the bin loop
 //! with its sums held in registers (per bin and pixel: one multiply-add per material, one
 //! [`super::exp::exp`], one or two multiply-adds), the pixels of a block innermost. The blocks
 //! change no value: every pixel's sums are the same operations in the same order as a plain
@@ -24,6 +29,7 @@
 //! measured 2× faster on the realistic knee image. Other CPUs run the scalar loop.
 
 use super::exp::exp;
+use super::transmission::Transmission;
 use super::{Beam, Scene};
 
 /// The per-bin weights of a beam on a detector, and their open-field sums.
@@ -96,13 +102,16 @@ pub(crate) struct RowScratch {
 /// pixel of row `j`, with the row's fluence `fluence`, written into `quanta` (and `energy`),
 /// each `W` long.
 ///
-/// `active` lists the materials with layers, ascending. A material's length at a pixel is the
-/// sum of its layers ([`super::material_row`]), a negative sum counting as 0.
+/// `active` lists the materials with layers, ascending, and `tables` their transmission tables
+/// (a pixel crossing one material with a table takes its values from it; module
+/// [`super::transmission`]). A material's length at a pixel is the sum of its layers
+/// ([`super::material_row`]), a negative sum counting as 0.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn row_expected(
     bins: &Bins,
     scene: &Scene,
     active: &[usize],
+    tables: &[Option<Transmission>],
     j: usize,
     fluence: &[f64],
     quanta: &mut [f64],
@@ -129,17 +138,36 @@ pub(crate) fn row_expected(
             hi = hi.max(span.end);
         }
     }
-    // The pixels with some material on their ray, and their lengths, gathered by block.
+    // The pixels with some material on their ray: those crossing one material with a table
+    // take its values; the others, and their lengths, are gathered by block.
+    let slots = active.len();
     s.covered.clear();
     for i in lo..hi {
-        if s.rows.chunks_exact(w).any(|row| row[i] != 0.0) {
-            s.covered.push(i);
+        let (mut crossed, mut slot) = (0usize, 0usize);
+        for k in 0..slots {
+            if s.rows[k * w + i] != 0.0 {
+                crossed += 1;
+                slot = k;
+            }
         }
+        if crossed == 0 {
+            continue;
+        }
+        if crossed == 1
+            && let Some(table) = &tables[slot]
+            && let Some((q, e)) = table.at(s.rows[slot * w + i])
+        {
+            quanta[i] = fluence[i] * q;
+            if let Some(en) = energy.as_deref_mut() {
+                en[i] = fluence[i] * e;
+            }
+            continue;
+        }
+        s.covered.push(i);
     }
     if s.covered.is_empty() {
         return;
     }
-    let slots = active.len();
     s.lengths.clear();
     for block in s.covered.chunks(LANES) {
         for row in s.rows.chunks_exact(w) {

@@ -65,8 +65,9 @@
 //! lengths arrive as [`Layer`]s (one solid's rectangle of lengths, added to or taken from one
 //! material) and the fluence as a [`PointSourceFluence`]; both are turned into values one row at
 //! a time inside the row loop, so no W×H image per material is held. Pixels whose lengths are
-//! all 0 share one precomputed open-field sum (times their fluence); the others run through a
-//! bin loop over blocks of pixels, with AVX2 intrinsics where the CPU has them (bit for bit the
+//! all 0 share one precomputed open-field sum (times their fluence); those crossing a single
+//! material take its per-image transmission table (within 10⁻¹⁰ of the sum; `transmission`);
+//! the others run through a bin loop over blocks of pixels, with AVX2 intrinsics where the CPU has them (bit for bit the
 //! scalar values; see `expected`).
 
 mod convolve;
@@ -81,6 +82,7 @@ pub mod psf;
 pub mod scatter;
 #[cfg(test)]
 mod tests;
+mod transmission;
 mod unsharp;
 
 pub use fluence::{PointSourceFluence, point_source_fluence};
@@ -95,6 +97,7 @@ use rayon::prelude::*;
 
 use crate::noise::NoiseKey;
 use expected::{Bins, RowScratch, row_expected};
+use transmission::Transmission;
 
 /// The attenuation (natural log of open-field over object signal) shown white in a radiograph
 /// when the scenario does not say: 7, i.e. 0.09 % transmission.
@@ -380,6 +383,8 @@ struct Prepared {
     bins: Bins,
     /// Materials with at least one layer, ascending.
     active: Vec<usize>,
+    /// Per active material, the table of its transmission for pixels that cross it alone.
+    tables: Vec<Option<Transmission>>,
 }
 
 impl Prepared {
@@ -416,7 +421,24 @@ impl Prepared {
             scene.height as u64 <= 1u64 << 32,
             "more than 2³² rows (noise streams are numbered by u32)"
         );
-        Prepared { bins, active }
+        let tables = active
+            .iter()
+            .map(|&m| {
+                // An upper bound of the material's net length: its positive layers' maxima.
+                let max_mm = scene
+                    .layers
+                    .iter()
+                    .filter(|l| l.material == m && l.sign > 0.0)
+                    .map(|l| l.length_mm.iter().fold(0.0f64, |a, &v| a.max(v)))
+                    .fold(0.0, |a, v| a + v);
+                Transmission::new(&bins, &scene.mu_per_mm[m], max_mm, w * h)
+            })
+            .collect();
+        Prepared {
+            bins,
+            active,
+            tables,
+        }
     }
 
     /// Row `j`'s fluence (into `fluence`, resized to W) and its expected quanta (and, with
@@ -437,6 +459,7 @@ impl Prepared {
             &self.bins,
             scene,
             &self.active,
+            &self.tables,
             j,
             fluence,
             quanta,

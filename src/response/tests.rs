@@ -651,3 +651,90 @@ fn rectangle_layers_and_row_fluence_equal_full_images() {
     );
     assert_eq!(r1, r2);
 }
+
+#[test]
+fn single_material_pixels_take_the_table_within_its_bound() {
+    // 320 × 200 pixels, 30 bins: soft tissue-like material 0 over most of the image (lengths
+    // 0–180 mm), a bone-like material 1 over a band inside it. Pixels crossing material 0 alone
+    // come from its table (module `transmission`): within 10⁻¹⁰ of the per-bin sum, and not
+    // bit for bit the sum (the table is used). Pixels crossing both keep the sum exactly.
+    let (w, h) = (320usize, 200usize);
+    let nbins = 30;
+    let energies: Vec<f64> = (0..nbins).map(|b| 15.0 + 2.3 * b as f64).collect();
+    let beam = Beam {
+        photons_per_pixel: energies.iter().map(|e| 50.0 * (85.0 - e)).collect(),
+        energies_kev: energies.clone(),
+    };
+    let eta: Vec<f64> = energies.iter().map(|e| 1.0 - (-(40.0 / e)).exp()).collect();
+    let mu = vec![
+        energies
+            .iter()
+            .map(|e| 0.02 + 0.03 * (30.0 / e).powi(3))
+            .collect::<Vec<f64>>(),
+        energies
+            .iter()
+            .map(|e| 0.03 + 0.25 * (30.0 / e).powi(3))
+            .collect(),
+    ];
+    let tissue: Vec<f64> = (0..w * h)
+        .map(|p| {
+            let (i, j) = ((p % w) as f64, (p / w) as f64);
+            if i < 10.0 {
+                0.0
+            } else {
+                180.0 * (1.0 - ((i - 165.0) / 160.0).powi(2)) * (0.6 + j / 500.0)
+            }
+        })
+        .collect();
+    let bone: Vec<f64> = (0..w * h)
+        .map(|p| {
+            if (90..110).contains(&(p / w)) {
+                12.0 + (p % 7) as f64
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let lengths = vec![tissue.clone(), bone.clone()];
+    let fluence = vec![1.0; w * h];
+    let scene = Scene {
+        width: w,
+        height: h,
+        mu_per_mm: &mu,
+        layers: &Layer::images(w, h, &lengths),
+        fluence: Fluence::Image(&fluence),
+    };
+    let det = detector(Response::EnergyIntegrating, eta.clone(), Polarity::Raw);
+    let e = expected(&beam, &det, &scene);
+    let (mut worst, mut tabled, mut exact) = (0.0f64, 0usize, 0usize);
+    for p in 0..w * h {
+        // The per-bin sums in the response's own order with its own exp.
+        let (mut q, mut en) = (0.0, 0.0);
+        for b in 0..nbins {
+            let t = exp::exp(-(0.0 + mu[0][b] * tissue[p] + mu[1][b] * bone[p]));
+            let wq = beam.photons_per_pixel[b] * eta[b];
+            q += wq * t;
+            en += wq * energies[b] * t;
+        }
+        if tissue[p] > 0.0 && bone[p] == 0.0 {
+            worst = worst
+                .max(((e.quanta[p] - q) / q).abs())
+                .max(((e.energy_kev[p] - en) / en).abs());
+            tabled += usize::from(e.quanta[p].to_bits() != q.to_bits());
+        } else {
+            assert_eq!(e.quanta[p].to_bits(), q.to_bits(), "pixel {p}");
+            assert_eq!(e.energy_kev[p].to_bits(), en.to_bits(), "pixel {p}");
+            exact += 1;
+        }
+    }
+    assert!(worst <= 1e-10 + 1e-14, "{worst:e}");
+    assert!(tabled > (w * h) / 2, "{tabled} pixels from the table");
+    assert!(exact > 20 * w, "{exact}");
+    // The quanta are the same whether or not the energy is wanted.
+    let q = expected_quanta(&beam, &det, &scene);
+    assert!(
+        q.iter()
+            .zip(&e.quanta)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+}
