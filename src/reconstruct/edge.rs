@@ -59,24 +59,10 @@ impl EdgeWindows {
 
     /// The windows for a model's edges under the nominal `imaging` settings, on pixels of
     /// `pitch_mm`, for an object whose distance from the detector is `magnified_fraction` times
-    /// its distance from the source (object-to-detector over source-to-object): the standard
-    /// deviations of the detector's Gaussian PSF, of the focal spot's projected penumbra
-    /// (a uniform spot of side a: a/√12; a Gaussian of FWHM a: a/2.3548; times
-    /// `magnified_fraction`) and of the pixel's own area (1/√12 px) add in quadrature. An MTF
-    /// table is not read (its blur is taken as none).
+    /// its distance from the source (object-to-detector over source-to-object): those of its
+    /// [`nominal_blur_px`].
     pub fn for_imaging(imaging: &Imaging, pitch_mm: f64, magnified_fraction: f64) -> EdgeWindows {
-        let psf_mm = imaging.detector.psf.as_ref().map_or(0.0, |p| p.sigma_mm);
-        let spot_mm = imaging
-            .focal_spot
-            .as_ref()
-            .map_or(0.0, |f| match f.profile {
-                SpotProfile::Uniform => f.size_mm / 12f64.sqrt(),
-                SpotProfile::Gaussian => f.size_mm / 2.3548,
-            })
-            * magnified_fraction.max(0.0);
-        let sigma_px =
-            ((psf_mm * psf_mm + spot_mm * spot_mm) / (pitch_mm * pitch_mm) + 1.0 / 12.0).sqrt();
-        EdgeWindows::for_blur(sigma_px)
+        EdgeWindows::for_blur(nominal_blur_px(imaging, pitch_mm, magnified_fraction))
     }
 
     /// The windows for an edge blurred by a total standard deviation of `sigma_px` pixels: the
@@ -95,6 +81,25 @@ impl EdgeWindows {
             search_px: near + 2,
         }
     }
+}
+
+/// The nominal blur of a model's edge, SD in pixels of `pitch_mm`, for an object whose
+/// distance from the detector is `magnified_fraction` times its distance from the source: the
+/// standard deviations of the detector's Gaussian PSF, of the focal spot's projected penumbra
+/// (a uniform spot of side a: a/√12; a Gaussian of FWHM a: a/2.3548; times
+/// `magnified_fraction`) and of the pixel's own area (1/√12 px) added in quadrature. An MTF
+/// table is not read (its blur is taken as none).
+pub fn nominal_blur_px(imaging: &Imaging, pitch_mm: f64, magnified_fraction: f64) -> f64 {
+    let psf_mm = imaging.detector.psf.as_ref().map_or(0.0, |p| p.sigma_mm);
+    let spot_mm = imaging
+        .focal_spot
+        .as_ref()
+        .map_or(0.0, |f| match f.profile {
+            SpotProfile::Uniform => f.size_mm / 12f64.sqrt(),
+            SpotProfile::Gaussian => f.size_mm / 2.3548,
+        })
+        * magnified_fraction.max(0.0);
+    ((psf_mm * psf_mm + spot_mm * spot_mm) / (pitch_mm * pitch_mm) + 1.0 / 12.0).sqrt()
 }
 
 /// The implant's dense shadow in `img` (module docs; `expected_area_px`: see
@@ -308,10 +313,14 @@ pub const MAX_LEVEL_DRIFT: f64 = 0.15;
 /// Unlike the points of [`graded_outline`], these do not depend on the segmentation: where the
 /// implant's thin rim reads less dense than bone beside it (a lateral view under scatter), the
 /// shadow found may leave the rim out, but its edge is still a step along the outline's normal.
+/// With `predicted`, each point is moved back along the normal by the crossing the model
+/// predicts there (the implant's own graded edge, [`super::edge_model`]), and left out where
+/// the prediction has none.
 pub fn edge_points_along_outline(
     img: &Density,
     segments: &[OutlineSegment],
     windows: EdgeWindows,
+    predicted: Option<PredictedCrossing>,
 ) -> Vec<DVec2> {
     let (w, h) = (img.width, img.height);
     let sample = |p: DVec2| -> Option<f64> {
@@ -359,14 +368,27 @@ pub fn edge_points_along_outline(
             // The implant lies on the side that transmits less.
             let first_inside = before < after;
             let profile = |k: i64| at_k(k).map(|v| (v, (k <= 0) == first_inside));
-            if let Some(u) = crossing(profile, first_inside, None, windows) {
-                points.push(q + normal * (u - 0.5));
-            }
+            let Some(u) = crossing(profile, first_inside, None, windows) else {
+                continue;
+            };
+            let shift = match predicted {
+                Some(predict) => match predict(q, normal) {
+                    Some(c) => c,
+                    None => continue,
+                },
+                None => 0.0,
+            };
+            points.push(q + normal * (u - 0.5 - shift));
         }
         carried = length - (at - ALONG_OUTLINE_SPACING_PX);
     }
     points
 }
+
+/// Where the edge profile along `normal` (unit) through the outline point `q` is predicted to
+/// cross its half-way level, pixels along `normal` from `q` (see [`super::edge_model`]); `None`
+/// where it predicts no clean step.
+pub type PredictedCrossing<'p> = &'p dyn Fn(DVec2, DVec2) -> Option<f64>;
 
 /// The spacing of the points [`edge_points_along_outline`] measures, pixels of outline length.
 pub const ALONG_OUTLINE_SPACING_PX: f64 = 1.0;
@@ -586,7 +608,7 @@ mod tests {
         let img = with_veil(&disc(120, 120, c, 20.0, 2.0), 0.05);
         let windows = EdgeWindows::for_blur(2.0);
         let predicted = circle_segments(c + DVec2::new(1.5, 0.0), 20.8, 720);
-        let points = edge_points_along_outline(&img, &predicted, windows);
+        let points = edge_points_along_outline(&img, &predicted, windows, None);
         // About one point per pixel of outline length (2π·20.8 ≈ 131).
         assert!(points.len() > 120 && points.len() < 140, "{}", points.len());
         // The half-level contour of a blurred disc lies σ²/(2R) = 0.1 px inside its edge
@@ -620,6 +642,7 @@ mod tests {
             &img.blurred(1.0),
             &circle_segments(c, 20.0, 720),
             EdgeWindows::SHARP,
+            None,
         );
         // Without the checks, the profiles through the gap would put their points 0.9 px inside
         // (half-way between metal and bone is crossed on the metal's edge to tissue). Only

@@ -37,6 +37,10 @@ pub struct Setup {
     /// Model meshes (from the files of `OUT/phantoms/`, in each phantom's local frame, mm) by
     /// phantom id.
     pub meshes: BTreeMap<String, Arc<TriMesh>>,
+    /// Attenuation mode: the nominal imaging resolved into numbers (spectrum, materials'
+    /// attenuation, detector absorption), as the operator knows the tube, the detector and the
+    /// implant's material. `None` in binary mode.
+    pub physics: Option<crate::attenuation::Setup>,
 }
 
 /// Reads `OUT/scenario.toml`, the bead tables and the model meshes of `OUT/phantoms/`.
@@ -76,6 +80,11 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
             beads.insert(p.id.clone(), read_bead_table(&file)?);
         }
     }
+    let physics = if loaded.scenario.imaging.is_attenuation() {
+        Some(crate::attenuation::Setup::build(&loaded, &models)?)
+    } else {
+        None
+    };
     let meshes = models
         .into_iter()
         .filter_map(|m| m.mesh.map(|mesh| (m.id, mesh)))
@@ -85,6 +94,7 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         nominal,
         beads,
         meshes,
+        physics,
     })
 }
 

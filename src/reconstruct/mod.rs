@@ -10,6 +10,7 @@ pub mod correspond;
 pub mod density;
 pub mod detect;
 pub mod edge;
+pub mod edge_model;
 pub mod exam;
 pub mod model;
 pub mod model_outline;

@@ -11,17 +11,20 @@ use super::beads::{find_beads, implant_metal_mask, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
-use super::density::{Reading, density};
+use super::density::{Density, Reading, density};
 use super::detect::{Blob, blobs};
-use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline};
+use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline, nominal_blur_px};
+use super::edge_model::{EdgeModel, MetalTransmission};
 use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
 use super::model_outline::OutlineSegment;
 use super::selvik::calibrate_selvik;
-use super::silhouette::{GOOD_FIT_PX, Remeasure, SilhouetteView, fit_silhouette};
+use super::silhouette::{
+    GOOD_FIT_PX, REMEASURE_ROUNDS, Remeasure, SilhouetteView, fit_silhouette, refine_remeasured,
+};
 use super::{Method, ModelMethod};
-use crate::expand::DetectorState;
+use crate::expand::{DetectorState, PhantomState};
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
 use crate::output::measured::{
     FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
@@ -296,7 +299,7 @@ pub fn reconstruct_run(
                     &exposure.id,
                     &beamlines,
                     model,
-                    phantom.pose(),
+                    phantom,
                 ),
                 None => Err(
                     "the model has no mesh; model-based RSA fits a mesh's outline (use --model-method markers)"
@@ -753,7 +756,7 @@ fn attenuation_windows(
     c: &Calibrated,
     det: &DetectorState,
     nominal: Pose,
-) -> Option<EdgeWindows> {
+) -> Option<(EdgeWindows, f64)> {
     let imaging = &setup.scenario.imaging;
     if !imaging.is_attenuation() {
         return None;
@@ -761,34 +764,72 @@ fn attenuation_windows(
     let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
     let source_z = frame.pose.to_local(c.beamline.source_mm).z;
     let model_z = frame.pose.to_local(nominal.position_mm).z;
-    Some(EdgeWindows::for_imaging(
+    let sigma_px = nominal_blur_px(
         imaging,
         det.pixel_pitch_mm[0].min(det.pixel_pitch_mm[1]),
         model_z / (source_z - model_z),
-    ))
+    );
+    Some((EdgeWindows::for_blur(sigma_px), sigma_px))
+}
+
+/// The median attenuation of `img` 5 px beside an outline's segments, on the side of each that
+/// is less dense (the background the implant lies on); `None` without a segment inside the image.
+fn background_beside(img: &Density, segments: &[OutlineSegment]) -> Option<f64> {
+    let at = |p: DVec2| {
+        (p.x >= 0.0 && p.y >= 0.0 && p.x < img.width as f64 && p.y < img.height as f64)
+            .then(|| img.at(p.x as usize, p.y as usize))
+    };
+    let mut levels: Vec<f64> = segments
+        .iter()
+        .filter_map(|s| {
+            let d = s.uv[1] - s.uv[0];
+            let n = DVec2::new(-d.y, d.x).normalize_or_zero() * BACKGROUND_OFFSET_PX;
+            let mid = (s.uv[0] + s.uv[1]) / 2.0;
+            Some(at(mid + n)?.min(at(mid - n)?))
+        })
+        .collect();
+    if levels.is_empty() {
+        return None;
+    }
+    let mid = levels.len() / 2;
+    Some(*levels.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
+/// How far beside the outline [`background_beside`] reads the background, pixels.
+const BACKGROUND_OFFSET_PX: f64 = 5.0;
+
+/// The material of phantom `id` as the scenario names it.
+fn phantom_material<'s>(setup: &'s Setup, id: &str) -> Option<&'s str> {
+    (setup.scenario.phantoms.iter())
+        .find(|p| p.id == id)
+        .and_then(|p| p.material.as_deref())
 }
 
 /// Model-based RSA of one model: its shadow's outline in every calibrated view, fitted from the
-/// nominal pose (see [`super::silhouette`]).
+/// nominal pose (see [`super::silhouette`]). In attenuation mode, the best fit is refined
+/// [`REMEASURE_ROUNDS`] more times on edge points corrected by the crossing its mesh and
+/// material predict ([`super::edge_model`]).
 fn find_model_by_outline(
     setup: &Setup,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
     model: &OutlineModel,
-    nominal: Pose,
+    phantom: &PhantomState,
 ) -> Result<MeasuredPose, String> {
+    let nominal = phantom.pose();
     let mut outlines = Vec::new();
     let mut graded_images = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
         let imaging = &setup.scenario.imaging;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
-        let found = if let Some(windows) = attenuation_windows(setup, c, det, nominal) {
+        let found = if let Some((windows, sigma_px)) = attenuation_windows(setup, c, det, nominal) {
             let expected_area_px = implant_in(setup, exposure, &frame, c.beamline.source_mm)
                 .and_then(|i| i.expected_area_px);
             let img = density(&px, w as usize, Reading::of(imaging, det.i_max()));
-            graded_outline(&img, windows, expected_area_px).map(|o| (o, Some((img, windows))))
+            graded_outline(&img, windows, expected_area_px)
+                .map(|o| (o, Some((img, windows, sigma_px))))
         } else {
             outline(&px, w as usize, det.i_max()).map(|o| (o, None))
         };
@@ -807,17 +848,58 @@ fn find_model_by_outline(
         .collect();
     // Graded images: every start's fit is refined again on edge points measured along its
     // outline's normals (`edge::edge_points_along_outline`), independent of the segmentation.
-    let remeasure = |k: usize, segments: &[OutlineSegment]| match &graded_images[k] {
-        Some((img, windows)) => edge_points_along_outline(img, segments, *windows),
+    let remeasure = |k: usize, _: &Pose, segments: &[OutlineSegment]| match &graded_images[k] {
+        Some((img, windows, _)) => edge_points_along_outline(img, segments, *windows, None),
         None => views[k].outline.edge_points.clone(),
     };
     let graded = graded_images.iter().all(Option::is_some);
-    let fit = fit_silhouette(
+    let mut fit = fit_silhouette(
         model,
         &views,
         nominal,
         graded.then_some(&remeasure as Remeasure),
     )?;
+    // The implant's own graded edge: the points corrected by the crossing predicted from its
+    // mesh and material, for the beam hardened by the tissue around it as each view's
+    // background beside the outline says.
+    let metals: Option<Vec<MetalTransmission>> = match (&setup.physics, graded) {
+        (Some(physics), true) => (graded_images.iter().zip(&views))
+            .map(|(g, view)| {
+                let (img, _, _) = g.as_ref()?;
+                let segments = model.outline(&fit.pose, view.source_mm, &view.frame);
+                MetalTransmission::of_material(
+                    physics,
+                    phantom_material(setup, &phantom.id)?,
+                    (setup.scenario.phantoms.iter())
+                        .find(|p| p.id == phantom.id)
+                        .and_then(|p| p.inside.as_deref())
+                        .and_then(|around| phantom_material(setup, around)),
+                    background_beside(img, &segments)?,
+                )
+            })
+            .collect(),
+        _ => None,
+    };
+    if let Some(metals) = &metals {
+        let corrected = |k: usize, pose: &Pose, segments: &[OutlineSegment]| {
+            let Some((img, windows, sigma_px)) = &graded_images[k] else {
+                return Vec::new();
+            };
+            let (view, edge) = (
+                &views[k],
+                EdgeModel {
+                    model,
+                    metal: &metals[k],
+                    sigma_px: *sigma_px,
+                    windows: *windows,
+                },
+            );
+            let predict =
+                |q: DVec2, n: DVec2| edge.crossing_px(pose, view.source_mm, &view.frame, q, n);
+            edge_points_along_outline(img, segments, *windows, Some(&predict))
+        };
+        fit = refine_remeasured(model, &views, fit, &corrected, REMEASURE_ROUNDS)?;
+    }
     let mut flags = Vec::new();
     if fit.mean_distance_px > GOOD_FIT_PX {
         flags.push(format!("contour distance > {GOOD_FIT_PX} px"));
