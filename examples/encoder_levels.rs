@@ -27,7 +27,7 @@ fn miniz(input: &[u8], level: i32) -> usize {
     n
 }
 
-/// libdeflate (through libdeflater; EXR blocks from 0.5.0) at `level`, zlib stream: its length.
+/// libdeflate (through libdeflater; EXR blocks in 0.5.0) at `level`, zlib stream: its length.
 fn libdeflate(input: &[u8], level: i32) -> usize {
     let mut c = libdeflater::Compressor::new(libdeflater::CompressionLvl::new(level).unwrap());
     let mut out = vec![0u8; c.zlib_compress_bound(input.len())];
@@ -77,8 +77,11 @@ fn main() {
         }
     }
     type Encoder = (&'static str, fn(&[u8]) -> usize);
-    let encoders: [Encoder; 11] = [
-        ("libdeflate level 1 (EXR now)", |x| libdeflate(x, 1)),
+    let encoders: [Encoder; 12] = [
+        ("rsasim exr_deflate (EXR now)", |x| {
+            rsasim::output::exr_deflate::zlib_compress(x).len()
+        }),
+        ("libdeflate level 1 (EXR in 0.5.0)", |x| libdeflate(x, 1)),
         ("libdeflate level 2", |x| libdeflate(x, 2)),
         ("libdeflate level 4", |x| libdeflate(x, 4)),
         ("miniz_oxide 0.9 level 1", |x| miniz_09(x, 1)),

@@ -20,9 +20,9 @@
 //! module does the OpenEXR ZIP preprocessing itself, exactly as the OpenEXR library and the
 //! `exr` crate do (little-endian samples; even-indexed bytes to the first half of the block and
 //! odd-indexed bytes to the second; then each byte replaced by `(b[i] − b[i−1] + 128) mod 256`,
-//! the first byte kept), deflates the result into a zlib stream with libdeflate (pinned through
-//! `libdeflater`; deterministic for its version on every platform) at [`ZIP_LEVEL`], and hands
-//! the finished blocks to the crate's chunk writer (`exr::block`). As in both libraries, a block
+//! the first byte kept), compresses the result into a zlib stream with the encoder made for these
+//! bytes in [`exr_deflate`](crate::output::exr_deflate) (Huffman codes from each block's own
+//! counts and runs at distance 1; the same bytes on every platform), and hands the finished blocks to the crate's chunk writer (`exr::block`). As in both libraries, a block
 //! whose compressed form is not smaller than its raw form is stored raw (readers recognise it by
 //! its size). The bytes it deflates are exactly the crate's (a test inflates both).
 //! [`ExrCompression::Rle`] and [`ExrCompression::None`] blocks come from the crate's own
@@ -186,13 +186,6 @@ pub fn encode_exr_channels(
     Ok(bytes)
 }
 
-/// The libdeflate level for ZIP and ZIPS blocks. Measured on the biplanar protocol's images
-/// (`cargo run --release --example encoder_levels`, BENCHMARKS.md "Encoders"): level 1 deflates
-/// an image's blocks in about a third of miniz_oxide's time at its level 1 (the encoder up to
-/// 0.4.0) for files of the same size; higher levels cost more time for a few per cent.
-/// Changing it changes every EXR file's bytes.
-pub const ZIP_LEVEL: i32 = 1;
-
 /// The pixel blocks of the file in increasing `y`, each as stored (compressed or raw, little
 /// endian). Blocks are independent, so they are compressed in parallel and collected in order.
 fn compress_blocks(
@@ -228,37 +221,17 @@ fn compress_blocks(
 }
 
 /// One OpenEXR ZIP block: the samples as little-endian bytes, split into even- and odd-indexed
-/// bytes, delta-coded (`b[i] − b[i−1] + 128`), then deflated as a zlib stream at [`ZIP_LEVEL`].
-/// Stored raw (little-endian samples) if that is not larger than the compressed form, as OpenEXR
-/// does.
+/// bytes, delta-coded (`b[i] − b[i−1] + 128`), then compressed as a zlib stream by
+/// [`exr_deflate`](crate::output::exr_deflate). Stored raw (little-endian samples) if that is not
+/// larger than the compressed form, as OpenEXR does.
 fn zip_block(samples: &[f32]) -> Vec<u8> {
     let n = samples.len() * 4;
-    match zlib(&zip_predicted(samples)) {
-        Some(compressed) if compressed.len() < n => compressed,
-        _ => samples.iter().flat_map(|v| v.to_le_bytes()).collect(),
+    let compressed = crate::output::exr_deflate::zlib_compress(&zip_predicted(samples));
+    if compressed.len() < n {
+        compressed
+    } else {
+        samples.iter().flat_map(|v| v.to_le_bytes()).collect()
     }
-}
-
-/// `bytes` as a zlib stream from libdeflate at [`ZIP_LEVEL`] (one compressor per thread: it
-/// holds about 1 MB of match-finder tables). `None` if libdeflate fails, which it does not with
-/// an output buffer of its own bound; the block is then stored raw.
-fn zlib(bytes: &[u8]) -> Option<Vec<u8>> {
-    use libdeflater::{CompressionLvl, Compressor};
-    use std::cell::RefCell;
-    thread_local! {
-        static COMPRESSOR: RefCell<Option<Compressor>> = const { RefCell::new(None) };
-    }
-    COMPRESSOR.with(|cell| {
-        let mut cell = cell.borrow_mut();
-        let compressor = match cell.as_mut() {
-            Some(c) => c,
-            None => cell.insert(Compressor::new(CompressionLvl::new(ZIP_LEVEL).ok()?)),
-        };
-        let mut out = vec![0u8; compressor.zlib_compress_bound(bytes.len())];
-        let len = compressor.zlib_compress(bytes, &mut out).ok()?;
-        out.truncate(len);
-        Some(out)
-    })
 }
 
 /// The bytes OpenEXR's ZIP compression deflates for one block of samples: little-endian bytes

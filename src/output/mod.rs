@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod commit;
 pub mod dicom;
 pub mod exr;
+pub mod exr_deflate;
 pub mod folder_readme;
 pub mod html_text;
 pub mod manifest;
