@@ -13,6 +13,7 @@ pub mod edge;
 pub mod exam;
 pub mod model;
 pub mod model_outline;
+pub mod overprojection;
 pub mod pipeline;
 pub mod rigid;
 pub mod selvik;
