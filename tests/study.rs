@@ -158,6 +158,33 @@ fn independent_migration(out: &Path, study: &Value) -> BTreeMap<(String, String)
     out_map
 }
 
+/// The test study simulated with `patients` patients into `tmp/out<patients>`.
+fn simulate_patients(tmp: &Path, patients: u32) -> PathBuf {
+    let models = root().join("scenarios/models");
+    let text = std::fs::read_to_string(root().join(SCENARIO))
+        .unwrap()
+        .replace("../../scenarios/models/", &format!("{}/", models.display()));
+    let path = tmp.join(format!("study{patients}.toml"));
+    std::fs::write(
+        &path,
+        text.replace("patients = 3", &format!("patients = {patients}")),
+    )
+    .unwrap();
+    let out = tmp.join(format!("out{patients}"));
+    let o = rsasim(
+        &[
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--allow-dir",
+            models.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
 fn simulate(tmp: &Path) -> PathBuf {
     let out = tmp.join("study");
     run_scenario(SCENARIO, &out, &[]);
@@ -393,31 +420,7 @@ fn on_the_shipped_study_subsidence_is_proximal_and_the_tilt_turns_proximal_forwa
 #[test]
 fn patients_are_prefix_stable() {
     let tmp = tempfile::tempdir().unwrap();
-    let models = root().join("scenarios/models");
-    let text = std::fs::read_to_string(root().join(SCENARIO))
-        .unwrap()
-        .replace("../../scenarios/models/", &format!("{}/", models.display()));
-    let write = |patients: u32| {
-        let path = tmp.path().join(format!("study{patients}.toml"));
-        std::fs::write(
-            &path,
-            text.replace("patients = 3", &format!("patients = {patients}")),
-        )
-        .unwrap();
-        let out = tmp.path().join(format!("out{patients}"));
-        let o = rsasim(
-            &[
-                path.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--allow-dir",
-                models.to_str().unwrap(),
-            ],
-            &[],
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        out
-    };
+    let write = |patients: u32| simulate_patients(tmp.path(), patients);
     let (few, many) = (write(1), write(4));
     let runs_of = |out: &Path| -> Vec<(String, String)> {
         hashes(out)
@@ -556,28 +559,7 @@ fn a_study_json_the_manifest_does_not_list_is_refused() {
     let out = simulate(tmp.path());
     let file = out.join("study.json");
     let original = std::fs::read(&file).unwrap();
-    let models = root().join("scenarios/models");
-    let one = tmp.path().join("one.toml");
-    std::fs::write(
-        &one,
-        std::fs::read_to_string(root().join(SCENARIO))
-            .unwrap()
-            .replace("../../scenarios/models/", &format!("{}/", models.display()))
-            .replace("patients = 3", "patients = 1"),
-    )
-    .unwrap();
-    let other = tmp.path().join("other");
-    let o = rsasim(
-        &[
-            one.to_str().unwrap(),
-            "--out",
-            other.to_str().unwrap(),
-            "--allow-dir",
-            models.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let other = simulate_patients(tmp.path(), 1);
     let foreign = std::fs::read(other.join("study.json")).unwrap();
     assert_ne!(foreign, original);
     // Swapping two exams' runs keeps valid JSON of the right shape.
