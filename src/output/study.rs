@@ -101,7 +101,7 @@ fn check_listed(dir: &Path, bytes: &[u8]) -> Result<(), String> {
     let sha256 = hex(&Sha256::digest(bytes));
     if sha256 != entry.sha256 {
         return Err(format!(
-            "differs from the study.json {} lists (SHA-256 {sha256}, listed {}): it was edited, or comes from another study (written for scenario {:?})",
+            "differs from the study.json {} lists (SHA-256 {sha256}, listed {}): it was edited, or comes from another study (this folder holds scenario {:?})",
             manifest.display(),
             entry.sha256,
             listing.scenario,
