@@ -51,7 +51,8 @@ fn a_study_is_simulated_reconstructed_and_scored() {
     let measured = read_json(&out.join("migration_measured.json"));
     let migrations = measured["migrations"].as_array().unwrap();
     // Every follow-up of every patient (3 × 4) is measured, within a few times the per-exam SD
-    // of the shipped study (0.07 mm along z, 0.08°).
+    // of the shipped study (0.06 mm along z, 0.07°). Before overprojected bone markers were left
+    // out and the fit between exams weighted, p02's z at 3m was off by 0.20 mm.
     let mut compared = 0;
     for p in study["patients"].as_array().unwrap() {
         for t in p["migration"].as_array().unwrap() {
@@ -63,7 +64,7 @@ fn a_study_is_simulated_reconstructed_and_scored() {
                 let dt = f(&m["translation_mm"], k) - f(&t["translation_mm"], k);
                 let dr = f(&m["rotation_deg"], k) - f(&t["rotation_deg"], k);
                 assert!(
-                    dt.abs() < 0.25 && dr.abs() < 0.5,
+                    dt.abs() < 0.12 && dr.abs() < 0.3,
                     "{} {} axis {k}: translation off by {dt} mm, rotation by {dr} deg",
                     p["id"],
                     t["exam"]
