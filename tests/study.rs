@@ -158,6 +158,33 @@ fn independent_migration(out: &Path, study: &Value) -> BTreeMap<(String, String)
     out_map
 }
 
+/// The test study simulated with `patients` patients into `tmp/out<patients>`.
+fn simulate_patients(tmp: &Path, patients: u32) -> PathBuf {
+    let models = root().join("scenarios/models");
+    let text = std::fs::read_to_string(root().join(SCENARIO))
+        .unwrap()
+        .replace("../../scenarios/models/", &format!("{}/", models.display()));
+    let path = tmp.join(format!("study{patients}.toml"));
+    std::fs::write(
+        &path,
+        text.replace("patients = 3", &format!("patients = {patients}")),
+    )
+    .unwrap();
+    let out = tmp.join(format!("out{patients}"));
+    let o = rsasim(
+        &[
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--allow-dir",
+            models.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
 fn simulate(tmp: &Path) -> PathBuf {
     let out = tmp.join("study");
     run_scenario(SCENARIO, &out, &[]);
@@ -393,31 +420,7 @@ fn on_the_shipped_study_subsidence_is_proximal_and_the_tilt_turns_proximal_forwa
 #[test]
 fn patients_are_prefix_stable() {
     let tmp = tempfile::tempdir().unwrap();
-    let models = root().join("scenarios/models");
-    let text = std::fs::read_to_string(root().join(SCENARIO))
-        .unwrap()
-        .replace("../../scenarios/models/", &format!("{}/", models.display()));
-    let write = |patients: u32| {
-        let path = tmp.path().join(format!("study{patients}.toml"));
-        std::fs::write(
-            &path,
-            text.replace("patients = 3", &format!("patients = {patients}")),
-        )
-        .unwrap();
-        let out = tmp.path().join(format!("out{patients}"));
-        let o = rsasim(
-            &[
-                path.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--allow-dir",
-                models.to_str().unwrap(),
-            ],
-            &[],
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        out
-    };
+    let write = |patients: u32| simulate_patients(tmp.path(), patients);
     let (few, many) = (write(1), write(4));
     let runs_of = |out: &Path| -> Vec<(String, String)> {
         hashes(out)
@@ -544,4 +547,69 @@ fn in_attenuation_mode_the_migration_truth_matches_the_absolute_poses_too() {
             .iter()
             .all(|m| m["occluded"].is_boolean())
     );
+}
+
+/// `study.json` pairs runs with patients and exams, so `reconstruct` and `evaluate` use it only
+/// when it is the file the folder's manifest lists: an edited one, or a valid one from another
+/// study (here the same design simulated with one patient, whose runs all exist in the folder),
+/// is refused with exit code 2 and an error naming it, before anything is written.
+#[test]
+fn a_study_json_the_manifest_does_not_list_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = simulate(tmp.path());
+    let file = out.join("study.json");
+    let original = std::fs::read(&file).unwrap();
+    let other = simulate_patients(tmp.path(), 1);
+    let foreign = std::fs::read(other.join("study.json")).unwrap();
+    assert_ne!(foreign, original);
+    // Swapping two exams' runs keeps valid JSON of the right shape.
+    let mut edited: Value = serde_json::from_slice(&original).unwrap();
+    let runs = &mut edited["patients"][0]["runs"];
+    let (six, year) = (runs["6m"].clone(), runs["1y"].clone());
+    assert_eq!(
+        (six.as_str(), year.as_str()),
+        (Some("p01-e2-6m"), Some("p01-e3-1y"))
+    );
+    runs["6m"] = year;
+    runs["1y"] = six;
+    let tampered = serde_json::to_string_pretty(&edited).unwrap() + "\n";
+    let report = tmp.path().join("report");
+    for (what, bytes) in [("foreign", foreign), ("tampered", tampered.into_bytes())] {
+        std::fs::write(&file, &bytes).unwrap();
+        for args in [
+            vec!["reconstruct", out.to_str().unwrap()],
+            vec![
+                "evaluate",
+                out.to_str().unwrap(),
+                "--report",
+                report.to_str().unwrap(),
+            ],
+        ] {
+            let o = rsasim(&args, &[]);
+            let stderr = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{what} {args:?}: {stderr}");
+            assert!(
+                stderr.contains("study.json")
+                    && stderr.contains("differs from the study.json")
+                    && stderr.contains("manifest.json"),
+                "{what} {args:?}: {stderr}"
+            );
+        }
+        assert!(!report.exists(), "{what}: a report was written");
+        assert!(
+            !out.join("runs/p01-e0-postop").read_dir().unwrap().any(|e| e
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with("measured")),
+            "{what}: reconstruct wrote results"
+        );
+    }
+    // The original file passes the check (this test study's one box plate cannot calibrate a
+    // view, so the runs themselves then fail, and are reported as such).
+    std::fs::write(&file, &original).unwrap();
+    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!stderr.contains("study.json"), "{stderr}");
+    assert!(stderr.contains("calibration failed"), "{stderr}");
 }

@@ -51,7 +51,8 @@ fn a_study_is_simulated_reconstructed_and_scored() {
     let measured = read_json(&out.join("migration_measured.json"));
     let migrations = measured["migrations"].as_array().unwrap();
     // Every follow-up of every patient (3 × 4) is measured, within a few times the per-exam SD
-    // of the shipped study (0.07 mm along z, 0.08°).
+    // of the shipped study (0.06 mm along z, 0.07°). Before overprojected bone markers were left
+    // out and the fit between exams weighted, p02's z at 3m was off by 0.20 mm.
     let mut compared = 0;
     for p in study["patients"].as_array().unwrap() {
         for t in p["migration"].as_array().unwrap() {
@@ -63,7 +64,7 @@ fn a_study_is_simulated_reconstructed_and_scored() {
                 let dt = f(&m["translation_mm"], k) - f(&t["translation_mm"], k);
                 let dr = f(&m["rotation_deg"], k) - f(&t["rotation_deg"], k);
                 assert!(
-                    dt.abs() < 0.25 && dr.abs() < 0.5,
+                    dt.abs() < 0.12 && dr.abs() < 0.3,
                     "{} {} axis {k}: translation off by {dt} mm, rotation by {dr} deg",
                     p["id"],
                     t["exam"]
@@ -73,6 +74,76 @@ fn a_study_is_simulated_reconstructed_and_scored() {
         }
     }
     assert_eq!(compared, 12);
+
+    // Bone markers whose image shares pixels with a box bead's are left out of that image:
+    // listed `overprojected`, and no measured marker is off by a biased centre. In these three
+    // patients, p02's K6 at postop lies 5.1 px from a box bead in the right image; measured
+    // from the merged blob it was off by 0.19 mm, the others by at most 0.12 mm.
+    let mut overprojected_seen = 0;
+    for p in study["patients"].as_array().unwrap() {
+        for run in p["runs"].as_object().unwrap().values() {
+            let dir = out.join("runs").join(run.as_str().unwrap());
+            let truth = read_json(&dir.join("truth.json"));
+            let measured = read_json(&dir.join("measured-rsasim-dlt-auto.json"));
+            let fem = |phantoms: &Value| {
+                phantoms
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|x| x["id"] == "femur")
+                    .unwrap()
+                    .clone()
+            };
+            let (true_femur, femur) = (fem(&truth["phantoms"]), fem(&measured["phantoms"]));
+            for m in femur["markers"].as_array().unwrap() {
+                let t = true_femur["markers"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|t| t["id"] == m["id"])
+                    .unwrap();
+                let e = (0..3)
+                    .map(|k| (f(&m["position_mm"], k) - f(&t["position_mm"], k)).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                assert!(e < 0.15, "{run} {}: off by {e} mm", m["id"]);
+            }
+            let listed: Vec<(String, String)> = femur["quality"]["overprojected"]
+                .as_array()
+                .map(|a| {
+                    a.iter()
+                        .map(|o| (o["bead"].to_string(), o["detector"].to_string()))
+                        .collect()
+                })
+                .unwrap_or_default();
+            overprojected_seen += listed.len();
+            // The truth's images: the distance from each bone bead's image to the nearest box
+            // bead's (1 mm bone beads are about 5.1 px wide there, box beads 3.4–3.8 px).
+            for image in truth["images"].as_array().unwrap() {
+                let markers = image["markers"].as_array().unwrap();
+                for b in markers.iter().filter(|b| b["phantom"] == "femur") {
+                    let nearest = markers
+                        .iter()
+                        .filter(|c| c["phantom"] == "cage")
+                        .map(|c| {
+                            (f(&c["pixel"], 0) - f(&b["pixel"], 0))
+                                .hypot(f(&c["pixel"], 1) - f(&b["pixel"], 1))
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                    let key = (b["id"].to_string(), image["detector"].to_string());
+                    if nearest < 5.2 {
+                        assert!(
+                            listed.contains(&key),
+                            "{run} {key:?} {nearest} px: {listed:?}"
+                        );
+                    } else if nearest > 6.0 {
+                        assert!(!listed.contains(&key), "{run} {key:?} {nearest} px");
+                    }
+                }
+            }
+        }
+    }
+    assert!(overprojected_seen >= 2, "{overprojected_seen}");
 
     // Patient 2's K8 is loose from 1y on (0.58 mm): excluded at 1y and 2y, kept before.
     let segments = measured["segments"].as_array().unwrap();

@@ -30,14 +30,22 @@ pub struct SegmentSeen {
     pub mean_error_mm: Option<f64>,
     /// The program's own CN for this exam's fit, if it reports one.
     pub condition_number: Option<f64>,
+    /// The exam's X-ray source positions (box frame), when the program reports them: they
+    /// weigh the markers in the fit between exams ([`fit_stable`]).
+    pub sources_mm: Vec<DVec3>,
 }
 
 /// What was measured at one exam, by segment id.
 pub type ExamSeen = BTreeMap<String, SegmentSeen>;
 
 /// The segments of a results file (`measured.json`): each phantom's pose (when it has a
-/// rotation) and its markers.
+/// rotation), its markers and the exam's sources.
 pub fn exam_seen(measured: &Measured) -> ExamSeen {
+    let sources_mm: Vec<DVec3> = measured
+        .sources
+        .iter()
+        .map(|s| DVec3::from_array(s.position_mm))
+        .collect();
     measured
         .phantoms
         .iter()
@@ -57,6 +65,7 @@ pub fn exam_seen(measured: &Measured) -> ExamSeen {
                         .collect(),
                     mean_error_mm: quality.and_then(|q| q.mean_error_mm),
                     condition_number: quality.and_then(|q| q.condition_number),
+                    sources_mm: sources_mm.clone(),
                 },
             )
         })
@@ -125,8 +134,14 @@ fn find_segment(
         .filter(|k| at_exam.markers.contains_key(*k))
         .count();
     if common >= 3 {
-        let stable = fit_stable(&at_reference.markers, &at_exam.markers, threshold_mm)
-            .map_err(|e| format!("{patient} {exam} {id}: {e}"))?;
+        let stable = fit_stable(
+            &at_reference.markers,
+            &at_exam.markers,
+            &at_reference.sources_mm,
+            &at_exam.sources_mm,
+            threshold_mm,
+        )
+        .map_err(|e| format!("{patient} {exam} {id}: {e}"))?;
         let (me, cn) = (stable.fit.mean_error_mm, stable.fit.condition_number);
         return Ok(Found {
             pose: stable.fit.pose.compose(&reference_pose),
@@ -357,6 +372,7 @@ mod tests {
                 .collect(),
             mean_error_mm: None,
             condition_number: None,
+            sources_mm: Vec::new(),
         }
     }
 

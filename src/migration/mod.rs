@@ -6,6 +6,7 @@
 //!   [`crate::output::study`]), its translation, X-Y-Z Euler rotation and MTPM.
 //! - [`stability`]: a segment's motion between exams from its markers (rigid fit of the follow-up
 //!   markers to the reference markers), excluding markers that moved relative to the others.
+//! - [`weighted_fit`]: that fit weighted by each marker's triangulation covariance.
 //! - [`analysis`]: one patient's migration from every exam's measured segments.
 //!
 //! The guideline limits on the quality of a rigid-body fit live here, for every fit rsasim
@@ -15,6 +16,7 @@ pub mod analysis;
 pub mod csv;
 pub mod motion;
 pub mod stability;
+pub mod weighted_fit;
 
 /// Guideline limit on the mean error of rigid-body fitting (ME), mm (Valstar et al. 2005).
 pub const ME_LIMIT_MM: f64 = 0.35;

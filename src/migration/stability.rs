@@ -4,8 +4,9 @@
 
 use std::collections::BTreeMap;
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
+use super::weighted_fit::{fit_rigid_weighted, triangulation_covariance};
 use crate::reconstruct::rigid::{RigidFit, fit_rigid};
 
 /// A marker's residual in a fit between exams.
@@ -42,19 +43,36 @@ pub struct StableFit {
 /// While the largest leave-one-out residual exceeds `threshold_mm` and more than three markers
 /// are left, that marker is excluded and the check repeated (one at a time, since a loose marker
 /// also raises the others' residuals). Needs three non-collinear markers common to both exams.
+///
+/// With the X-ray sources of both exams known (`reference_sources_mm`, `follow_up_sources_mm`,
+/// each exam's frame; two or more each) every fit weighs each marker by its triangulation
+/// covariance ([`fit_rigid_weighted`]): depth, the direction both beams share, counts for
+/// less. Without them the fit is unweighted ([`fit_rigid`]).
 pub fn fit_stable(
     reference: &BTreeMap<String, DVec3>,
     follow_up: &BTreeMap<String, DVec3>,
+    reference_sources_mm: &[DVec3],
+    follow_up_sources_mm: &[DVec3],
     threshold_mm: f64,
 ) -> Result<StableFit, String> {
-    let mut kept: Vec<(&String, DVec3, DVec3)> = reference
+    type Pair<'a> = (&'a String, DVec3, DVec3, Option<(DMat3, DMat3)>);
+    let mut kept: Vec<Pair> = reference
         .iter()
-        .filter_map(|(id, r)| follow_up.get(id).map(|f| (id, *r, *f)))
+        .filter_map(|(id, r)| {
+            let f = follow_up.get(id)?;
+            let covariances = triangulation_covariance(*r, reference_sources_mm)
+                .zip(triangulation_covariance(*f, follow_up_sources_mm));
+            Some((id, *r, *f, covariances))
+        })
         .collect();
-    let fit_of = |set: &[(&String, DVec3, DVec3)]| {
-        let (from, to): (Vec<DVec3>, Vec<DVec3>) = set.iter().map(|(_, r, f)| (*r, *f)).unzip();
-        fit_rigid(&from, &to)
-            .map_err(|e| format!("{} marker(s) seen at both exams: {e}", set.len()))
+    let fit_of = |set: &[Pair]| {
+        let (from, to): (Vec<DVec3>, Vec<DVec3>) = set.iter().map(|m| (m.1, m.2)).unzip();
+        let covariances: Option<(Vec<DMat3>, Vec<DMat3>)> = set.iter().map(|m| m.3).collect();
+        match covariances {
+            Some((cov_from, cov_to)) => fit_rigid_weighted(&from, &to, &cov_from, &cov_to),
+            None => fit_rigid(&from, &to),
+        }
+        .map_err(|e| format!("{} marker(s) seen at both exams: {e}", set.len()))
     };
     let mut excluded = Vec::new();
     loop {
@@ -63,7 +81,7 @@ pub fn fit_stable(
             let mut worst: Option<(usize, f64)> = None;
             for k in 0..kept.len() {
                 let mut others = kept.clone();
-                let (_, r, f) = others.remove(k);
+                let (_, r, f, _) = others.remove(k);
                 // Three collinear others cannot place it: no verdict on this marker.
                 let Ok(without) = fit_of(&others) else {
                     continue;
@@ -74,7 +92,7 @@ pub fn fit_stable(
                 }
             }
             if let Some((k, residual_mm)) = worst.filter(|&(_, w)| w > threshold_mm) {
-                let (id, _, _) = kept.remove(k);
+                let (id, _, _, _) = kept.remove(k);
                 excluded.push(MarkerResidual {
                     bead: id.clone(),
                     residual_mm,
@@ -84,7 +102,7 @@ pub fn fit_stable(
         }
         let used = kept
             .iter()
-            .map(|(id, r, f)| MarkerResidual {
+            .map(|(id, r, f, _)| MarkerResidual {
                 bead: (*id).clone(),
                 residual_mm: (fit.pose.to_world(*r) - *f).length(),
             })
@@ -131,7 +149,7 @@ mod tests {
     fn stable_markers_give_the_exact_motion_and_none_is_excluded() {
         let reference = bone_markers();
         let t = Pose::from_position_euler_deg([12.0, -30.0, 4.0], [6.0, -9.0, 20.0]);
-        let fit = fit_stable(&reference, &moved(&t, &reference), 0.3).unwrap();
+        let fit = fit_stable(&reference, &moved(&t, &reference), &[], &[], 0.3).unwrap();
         assert!(fit.excluded.is_empty());
         assert_eq!(fit.used.len(), 8);
         assert!(fit.fit.mean_error_mm < 1e-12);
@@ -153,7 +171,7 @@ mod tests {
             "B6".into(),
             t.to_world(reference["B6"] + DVec3::new(0.05, 0.0, 0.0)),
         );
-        let fit = fit_stable(&reference, &follow_up, 0.3).unwrap();
+        let fit = fit_stable(&reference, &follow_up, &[], &[], 0.3).unwrap();
         assert_eq!(fit.excluded.len(), 1, "{:?}", fit.excluded);
         assert_eq!(fit.excluded[0].bead, "B3");
         // Fitted from the other seven, B3 is off by its 0.5 mm displacement, give or take B6's
@@ -180,7 +198,7 @@ mod tests {
         assert!((fit.fit.mean_error_mm - me).abs() < 1e-12);
         // A threshold above the loose marker's displacement keeps it; the fit then absorbs part
         // of it (the residual in the fit of all eight is below the displacement).
-        let lax = fit_stable(&reference, &follow_up, 0.6).unwrap();
+        let lax = fit_stable(&reference, &follow_up, &[], &[], 0.6).unwrap();
         let b3 = lax.used.iter().find(|m| m.bead == "B3").unwrap();
         assert!(b3.residual_mm < 0.5 && b3.residual_mm > 0.2, "{b3:?}");
         assert!(lax.excluded.is_empty() && lax.used.len() == 8);
@@ -191,18 +209,18 @@ mod tests {
         let reference = bone_markers();
         let mut follow_up = reference.clone();
         follow_up.retain(|id, _| id == "B1" || id == "B2" || id == "B5" || id == "B9");
-        let fit = fit_stable(&reference, &follow_up, 0.3).unwrap();
+        let fit = fit_stable(&reference, &follow_up, &[], &[], 0.3).unwrap();
         let used: Vec<&str> = fit.used.iter().map(|m| m.bead.as_str()).collect();
         assert_eq!(used, ["B1", "B2", "B5"]);
         follow_up.remove("B5");
-        let e = fit_stable(&reference, &follow_up, 0.3).unwrap_err();
+        let e = fit_stable(&reference, &follow_up, &[], &[], 0.3).unwrap_err();
         assert!(e.contains("2 marker(s)") && e.contains("at least 3"), "{e}");
         // With three markers a moved one cannot be told from the others: nothing is excluded.
         let mut three: BTreeMap<String, DVec3> = reference.clone();
         three.retain(|id, _| id == "B1" || id == "B2" || id == "B3");
         let mut moved3 = three.clone();
         moved3.insert("B3".into(), three["B3"] + DVec3::new(0.0, 0.0, 2.0));
-        let fit = fit_stable(&three, &moved3, 0.3).unwrap();
+        let fit = fit_stable(&three, &moved3, &[], &[], 0.3).unwrap();
         assert!(fit.excluded.is_empty() && fit.fit.mean_error_mm > 0.3);
     }
 }

@@ -116,6 +116,11 @@ pub struct FitQuality {
     /// shadow of an implant (attenuation-mode images), each with the detector it is hidden on.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub occluded: Vec<OccludedBead>,
+    /// Beads the software left out of an image because a calibration-box bead's image overlaps
+    /// theirs there (their blob's centre would be pulled towards the box bead), each with the
+    /// detector of that image.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub overprojected: Vec<OccludedBead>,
 }
 
 /// A bead hidden on one image.

@@ -26,10 +26,13 @@ use serde::{Deserialize, Serialize};
 
 use glam::DVec3;
 
+use sha2::{Digest, Sha256};
+
 use crate::diagnostic::Diagnostic;
 use crate::expand::study;
 use crate::geometry::{Pose, euler_xyz_deg};
-use crate::scenario::{Scenario, StudyDesign};
+use crate::output::verify::{check_manifest, read_manifest};
+use crate::scenario::{Scenario, StudyDesign, hex};
 
 /// The format tag of study files written by this version.
 pub const STUDY_FORMAT: &str = "rsasim-study/1";
@@ -39,13 +42,24 @@ pub const STUDY_FILE: &str = "study.json";
 
 /// Reads [`STUDY_FILE`] from `dir`: `None` when there is none (not a study); a byte-order mark
 /// is skipped. Errors name the file (and the line of a parse error).
+///
+/// The file must be the one the folder's `manifest.json` lists, byte for byte (its SHA-256):
+/// an edited `study.json`, or one copied from another study, would pair runs with the wrong
+/// exams or patients, so it is refused, as is a folder whose manifest is missing or modified.
 pub fn read_study(dir: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
     let file = dir.join(STUDY_FILE);
     if !file.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&file)
+    let bytes = std::fs::read(&file)
         .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
+    check_listed(dir, &bytes).map_err(|e| {
+        vec![Diagnostic::file_error(&file, e).with_help(
+            "study.json must be the file the simulator wrote into this folder: restore it, or re-run the scenario",
+        )]
+    })?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| vec![Diagnostic::file_error(&file, format!("not UTF-8: {e}"))])?;
     serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
         .map(Some)
         .map_err(|e| {
@@ -54,6 +68,46 @@ pub fn read_study(dir: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
                     .with_help("study.json is written by the simulator: re-run the scenario"),
             ]
         })
+}
+
+/// Checks `bytes` (the content of `dir`'s [`STUDY_FILE`]) against the SHA-256 that
+/// `dir/manifest.json` lists for it, after checking the manifest's own integrity.
+fn check_listed(dir: &Path, bytes: &[u8]) -> Result<(), String> {
+    let manifest = dir.join("manifest.json");
+    let (listing, manifest_bytes) = read_manifest(dir).map_err(|f| {
+        format!(
+            "cannot be checked against {}: {}",
+            manifest.display(),
+            f.problem
+        )
+    })?;
+    if let Some(f) = check_manifest(&listing, &manifest_bytes).first() {
+        return Err(format!(
+            "cannot be checked against {}: {}",
+            manifest.display(),
+            f.problem
+        ));
+    }
+    let entry = listing
+        .files
+        .iter()
+        .find(|f| f.path == STUDY_FILE)
+        .ok_or_else(|| {
+            format!(
+                "is not listed in {}: it was not written with this folder's runs",
+                manifest.display()
+            )
+        })?;
+    let sha256 = hex(&Sha256::digest(bytes));
+    if sha256 != entry.sha256 {
+        return Err(format!(
+            "differs from the study.json {} lists (SHA-256 {sha256}, listed {}): it was edited, or comes from another study (this folder holds scenario {:?})",
+            manifest.display(),
+            entry.sha256,
+            listing.scenario,
+        ));
+    }
+    Ok(())
 }
 
 /// The design of a clinical RSA study and its migration truth.

@@ -14,6 +14,7 @@ pub mod edge_model;
 pub mod exam;
 pub mod model;
 pub mod model_outline;
+pub mod overprojection;
 pub mod pipeline;
 pub mod rigid;
 pub mod selvik;
@@ -222,6 +223,8 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
             return Err(foreign);
         }
     }
+    // A clinical study's design, read (and checked against the manifest) before any run is.
+    let design = crate::output::study::read_study(out)?;
     let software = pipeline::software(options.method, label);
     // Each mesh model that will be fitted by its outline is prepared once for all runs.
     let mut outlines = BTreeMap::new();
@@ -285,6 +288,7 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
     }
     summary.migration = study::measure_and_write(
         out,
+        design.as_ref(),
         &measured_runs,
         options
             .stability_threshold_mm

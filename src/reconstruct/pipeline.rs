@@ -19,6 +19,7 @@ use super::exam::{Setup, TableBead, read_image};
 use super::model::View;
 use super::model_outline::OutlineModel;
 use super::model_outline::OutlineSegment;
+use super::overprojection::overprojected;
 use super::selvik::calibrate_selvik;
 use super::silhouette::{
     GOOD_FIT_PX, REMEASURE_ROUNDS, Remeasure, SilhouetteView, fit_silhouette, refine_remeasured,
@@ -285,6 +286,7 @@ pub fn reconstruct_run(
                     &exposure.id,
                     &beamlines,
                     beads,
+                    box_beads,
                     phantom.position_mm,
                 ),
                 None => Err(
@@ -642,15 +644,22 @@ fn mean_radius_px(preds: &[Prediction]) -> f64 {
 /// Marker-based RSA of one model from its bead-sized blobs in every calibrated view (see
 /// [`super::model`]). In attenuation mode, the beads whose fitted image falls on the metal
 /// shadow of a view are reported occluded there.
+///
+/// Blobs that share pixels with the predicted image of a box bead (`box_beads`) are left out
+/// of their view ([`overprojected`]): their centre is pulled towards the box bead. The model
+/// beads so left out are reported `overprojected`. Should the model not be found without them,
+/// it is found with them.
 fn find_model(
     setup: &Setup,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
     beads: &[TableBead],
+    box_beads: &[TableBead],
     nominal_position_mm: DVec3,
 ) -> Result<MeasuredPose, String> {
     let mut views = Vec::new();
+    let mut clear_views = Vec::new();
     let mut images = Vec::new();
     for (c, det) in beamlines.values() {
         let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
@@ -670,7 +679,7 @@ fn find_model(
             radius_px,
             implant_in(setup, exposure, &frame, c.beamline.source_mm),
         );
-        let candidates = image
+        let candidates: Vec<DVec2> = image
             .blobs
             .iter()
             .filter(|b| {
@@ -678,11 +687,36 @@ fn find_model(
             })
             .map(|b| b.centroid)
             .collect();
+        let box_images: Vec<Prediction> = box_beads
+            .iter()
+            .enumerate()
+            .filter_map(|(k, b)| {
+                predict(
+                    &frame,
+                    c.beamline.source_mm,
+                    b.position_mm,
+                    b.diameter_mm,
+                    k,
+                    0,
+                )
+            })
+            .collect();
+        let clear = candidates
+            .iter()
+            .copied()
+            .filter(|uv| !overprojected(*uv, radius_px, &box_images))
+            .collect();
         views.push(View {
             beamline: &c.beamline,
             pixels: det.pixels,
             pitch: det.pixel_pitch_mm,
             blobs: candidates,
+        });
+        clear_views.push(View {
+            beamline: &c.beamline,
+            pixels: det.pixels,
+            pitch: det.pixel_pitch_mm,
+            blobs: clear,
         });
         images.push((
             det.id.clone(),
@@ -690,21 +724,37 @@ fn find_model(
             c.beamline.source_mm,
             radius_px,
             image,
+            box_images,
         ));
     }
     let local: Vec<DVec3> = beads.iter().map(|b| b.position_mm).collect();
-    let found = super::model::find_model(&views, &local)?;
+    let found = super::model::find_model(&clear_views, &local)
+        .or_else(|_| super::model::find_model(&views, &local))?;
     let fit = &found.fit;
     let flags =
         crate::migration::quality_flags(Some(fit.mean_error_mm), Some(fit.condition_number));
     let occluded = images
         .iter()
-        .flat_map(|(id, frame, source_mm, radius_px, image)| {
+        .flat_map(|(id, frame, source_mm, radius_px, image, _)| {
             beads.iter().filter_map(move |b| {
                 let uv = frame.project(*source_mm, fit.pose.to_world(b.position_mm))?;
                 (frame.contains_pixel(uv) && image.occludes(uv, *radius_px)).then(|| OccludedBead {
                     bead: b.id.clone(),
                     detector: id.clone(),
+                })
+            })
+        })
+        .collect();
+    let overprojected_beads = images
+        .iter()
+        .flat_map(|(id, frame, source_mm, radius_px, _, box_images)| {
+            beads.iter().filter_map(move |b| {
+                let uv = frame.project(*source_mm, fit.pose.to_world(b.position_mm))?;
+                (frame.contains_pixel(uv) && overprojected(uv, *radius_px, box_images)).then(|| {
+                    OccludedBead {
+                        bead: b.id.clone(),
+                        detector: id.clone(),
+                    }
                 })
             })
         })
@@ -718,6 +768,7 @@ fn find_model(
             condition_number: Some(fit.condition_number),
             flags,
             occluded,
+            overprojected: overprojected_beads,
             ..Default::default()
         },
     );

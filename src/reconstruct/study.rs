@@ -13,7 +13,7 @@ use crate::migration::analysis::{exam_seen, measure_study};
 use crate::output::atomic::write_atomic;
 use crate::output::measured::Measured;
 use crate::output::migration_measured::{MIGRATION_MEASURED_CSV, MIGRATION_MEASURED_FILE};
-use crate::output::study::{STUDY_FILE, read_study};
+use crate::output::study::{STUDY_FILE, Study};
 
 /// What the migration step wrote.
 #[derive(Debug, Clone, PartialEq)]
@@ -26,15 +26,17 @@ pub struct StudyOutcome {
     pub failures: Vec<String>,
 }
 
-/// Measures and writes the study's migration when `out` holds `study.json`; `None` otherwise.
-/// `runs` are the results just written, by run id.
+/// Measures and writes the study's migration when `out` holds `study.json` (`design`, as
+/// [`read_study`](crate::output::study::read_study) read it); `None` otherwise. `runs` are the
+/// results just written, by run id.
 pub fn measure_and_write(
     out: &Path,
+    design: Option<&Study>,
     runs: &BTreeMap<String, Measured>,
     threshold_mm: f64,
     software: &str,
 ) -> Result<Option<StudyOutcome>, Vec<Diagnostic>> {
-    let Some(design) = read_study(out)? else {
+    let Some(design) = design else {
         return Ok(None);
     };
     let file = out.join(STUDY_FILE);
@@ -50,7 +52,7 @@ pub fn measure_and_write(
             (p.id.clone(), exams)
         })
         .collect();
-    let measured = measure_study(&design, &seen, threshold_mm, software)
+    let measured = measure_study(design, &seen, threshold_mm, software)
         .map_err(|e| vec![Diagnostic::file_error(&file, e)])?;
     let write = |name: &str, bytes: &[u8]| {
         write_atomic(&out.join(name), bytes).map_err(|e| {

@@ -211,6 +211,7 @@ fn seen_from_runs(
                                     markers: m.markers.get(id).cloned().unwrap_or_default(),
                                     mean_error_mm: None,
                                     condition_number: None,
+                                    sources_mm: m.sources.values().copied().collect(),
                                 },
                             )
                         })
