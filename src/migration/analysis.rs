@@ -38,6 +38,26 @@ pub struct SegmentSeen {
 /// What was measured at one exam, by segment id.
 pub type ExamSeen = BTreeMap<String, SegmentSeen>;
 
+/// What was seen, by patient and exam: `exam_of_run` gives the exam seen in a run (by run id),
+/// `None` where nothing was measured (that exam is then left out).
+pub fn seen_by_patient(
+    study: &Study,
+    mut exam_of_run: impl FnMut(&str) -> Option<ExamSeen>,
+) -> BTreeMap<String, BTreeMap<String, ExamSeen>> {
+    study
+        .patients
+        .iter()
+        .map(|p| {
+            let exams = p
+                .runs
+                .iter()
+                .filter_map(|(exam, run)| Some((exam.clone(), exam_of_run(run)?)))
+                .collect();
+            (p.id.clone(), exams)
+        })
+        .collect()
+}
+
 /// The segments of a results file (`measured.json`): each phantom's pose (when it has a
 /// rotation), its markers and the exam's sources.
 pub fn exam_seen(measured: &Measured) -> ExamSeen {

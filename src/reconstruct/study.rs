@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use crate::diagnostic::Diagnostic;
-use crate::migration::analysis::{exam_seen, measure_study};
+use crate::migration::analysis::{exam_seen, measure_study, seen_by_patient};
 use crate::output::atomic::write_atomic;
 use crate::output::measured::Measured;
 use crate::output::migration_measured::{MIGRATION_MEASURED_CSV, MIGRATION_MEASURED_FILE};
@@ -40,18 +40,7 @@ pub fn measure_and_write(
         return Ok(None);
     };
     let file = out.join(STUDY_FILE);
-    let seen = design
-        .patients
-        .iter()
-        .map(|p| {
-            let exams = p
-                .runs
-                .iter()
-                .filter_map(|(exam, run)| Some((exam.clone(), exam_seen(runs.get(run)?))))
-                .collect();
-            (p.id.clone(), exams)
-        })
-        .collect();
+    let seen = seen_by_patient(design, |run| runs.get(run).map(exam_seen));
     let measured = measure_study(design, &seen, threshold_mm, software)
         .map_err(|e| vec![Diagnostic::file_error(&file, e)])?;
     let write = |name: &str, bytes: &[u8]| {

@@ -22,7 +22,9 @@ use super::input::RunMeasurement;
 use super::stats::{Cell, Confidence};
 use crate::diagnostic::Diagnostic;
 use crate::geometry::Pose;
-use crate::migration::analysis::{ExamSeen, SegmentSeen, design_roles, measure_study};
+use crate::migration::analysis::{
+    ExamSeen, SegmentSeen, design_roles, measure_study, seen_by_patient,
+};
 use crate::output::migration_measured::{
     MIGRATION_MEASURED_FILE, MeasuredMigration, MigrationMeasured, SegmentExam,
 };
@@ -188,40 +190,29 @@ fn seen_from_runs(
     study: &Study,
     measurements: &BTreeMap<String, RunMeasurement>,
 ) -> BTreeMap<String, BTreeMap<String, ExamSeen>> {
-    study
-        .patients
-        .iter()
-        .map(|p| {
-            let exams = p
-                .runs
+    seen_by_patient(study, |run| {
+        let m = measurements.get(run)?;
+        Some(
+            m.phantoms
                 .iter()
-                .filter_map(|(exam, run)| {
-                    let m = measurements.get(run)?;
-                    let seen: ExamSeen = m
-                        .phantoms
-                        .iter()
-                        .map(|(id, (position_mm, rotation))| {
-                            (
-                                id.clone(),
-                                SegmentSeen {
-                                    pose: rotation.map(|rotation| Pose {
-                                        position_mm: *position_mm,
-                                        rotation,
-                                    }),
-                                    markers: m.markers.get(id).cloned().unwrap_or_default(),
-                                    mean_error_mm: None,
-                                    condition_number: None,
-                                    sources_mm: m.sources.values().copied().collect(),
-                                },
-                            )
-                        })
-                        .collect();
-                    Some((exam.clone(), seen))
+                .map(|(id, (position_mm, rotation))| {
+                    (
+                        id.clone(),
+                        SegmentSeen {
+                            pose: rotation.map(|rotation| Pose {
+                                position_mm: *position_mm,
+                                rotation,
+                            }),
+                            markers: m.markers.get(id).cloned().unwrap_or_default(),
+                            mean_error_mm: None,
+                            condition_number: None,
+                            sources_mm: m.sources.values().copied().collect(),
+                        },
+                    )
                 })
-                .collect();
-            (p.id.clone(), exams)
-        })
-        .collect()
+                .collect(),
+        )
+    })
 }
 
 /// The measured migration and where it came from (see the module doc).
