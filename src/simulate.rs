@@ -46,6 +46,8 @@ pub struct Checked {
     pub cost: Cost,
     /// Warnings from every stage (errors stop preparation).
     pub warnings: Vec<Diagnostic>,
+    /// Each model's mesh in a BVH (`None` for a model without a mesh), built once.
+    pub bvhs: Vec<Option<Arc<MeshBvh>>>,
 }
 
 /// A scenario checked and expanded, ready to run: nothing has been written yet.
@@ -54,6 +56,8 @@ pub struct Plan {
     pub loaded: LoadedScenario,
     /// Every phantom in its local frame.
     pub models: Vec<PhantomModel>,
+    /// Each model's mesh in a BVH (`None` for a model without a mesh), built once.
+    pub bvhs: Vec<Option<Arc<MeshBvh>>>,
     /// Attenuation mode: materials, spectrum and detector resolved.
     pub setup: Option<Setup>,
     /// Also write an 8-bit PNG preview beside every image (`--preview png`).
@@ -137,10 +141,18 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
     if !errors.is_empty() {
         return Err(errors);
     }
-    let mut findings = expand::check_geometry(&loaded, &models);
+    // One BVH per mesh for every check and the simulation; the meshes are built in parallel
+    // (each build is single-threaded, so its layout is deterministic).
+    let bvhs: Vec<Option<Arc<MeshBvh>>> = models
+        .par_iter()
+        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
+        .collect();
+    let mut findings = expand::check_geometry(&loaded, &models, &bvhs);
     if let Some(setup) = &setup {
         if !findings.iter().any(Diagnostic::is_error) {
-            findings.extend(attenuation::check::check_runs(&loaded, &models, setup));
+            findings.extend(attenuation::check::check_runs(
+                &loaded, &models, setup, &bvhs,
+            ));
         }
     }
     let (errors, warnings): (Vec<_>, Vec<_>) = findings.into_iter().partition(Diagnostic::is_error);
@@ -156,6 +168,7 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
         setup,
         cost,
         warnings: all_warnings,
+        bvhs,
     })
 }
 
@@ -189,6 +202,7 @@ impl From<Checked> for Plan {
             dicom_views,
             loaded: c.loaded,
             models: c.models,
+            bvhs: c.bvhs,
             setup: c.setup,
             previews: false,
             runs,
@@ -246,11 +260,7 @@ pub fn simulate(
     let truth_staged = truth.map(OutputTarget::stage).transpose()?;
     let root = staged.path();
     let truth_root = truth_staged.as_ref().map(|t| t.path());
-    let bvhs: Vec<Option<Arc<MeshBvh>>> = plan
-        .models
-        .iter()
-        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
-        .collect();
+    let bvhs = &plan.bvhs;
 
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
     let mut files = write_phantoms(plan, root, truth_root.is_some())?;
@@ -259,7 +269,7 @@ pub fn simulate(
     let runs = plan.written_runs();
     let per_run: Vec<RunFiles> = runs
         .par_iter()
-        .map(|run| write_run(plan, &bvhs, &sampling, run, root, truth_root, progress))
+        .map(|run| write_run(plan, bvhs, &sampling, run, root, truth_root, progress))
         .collect::<std::io::Result<_>>()?;
     let image_files = per_run.iter().map(|r| r.images.len()).sum();
     let mut truth_files = Vec::new();

@@ -18,24 +18,22 @@ use super::{Setup, parts};
 /// Most findings reported; the rest are counted.
 const MAX_FINDINGS: usize = 10;
 
-/// Every placement problem of every run, as errors at the bead's phantom.
+/// Every placement problem of every run, as errors at the bead's phantom. `bvhs` holds each
+/// model's mesh in a BVH (`None` for a model without a mesh).
 pub fn check_runs(
     loaded: &LoadedScenario,
     models: &[PhantomModel],
     setup: &Setup,
+    bvhs: &[Option<Arc<MeshBvh>>],
 ) -> Vec<Diagnostic> {
     let s = &loaded.scenario;
-    let bvhs: Vec<Option<Arc<MeshBvh>>> = models
-        .iter()
-        .map(|m| m.mesh.as_ref().map(|mesh| Arc::new(MeshBvh::new(mesh))))
-        .collect();
     let runs: Vec<expand::Run> = expand::runs(s, models).collect();
     let mut findings: Vec<(usize, String)> = runs
         .par_iter()
         .flat_map_iter(|run| {
             run.exposures
                 .iter()
-                .filter_map(|e| parts(s, setup, models, &bvhs, run, e).err())
+                .filter_map(|e| parts(s, setup, models, bvhs, run, e).err())
                 .collect::<Vec<_>>()
         })
         .collect();

@@ -10,6 +10,8 @@
 //! mesh hides it: beads show through bone). The ray test uses the tracer's BVH
 //! ([`MeshBvh::segment_hits`]).
 
+use std::sync::Arc;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -102,20 +104,21 @@ impl Findings {
 /// Errors for phantoms that are not strictly between a source and its detector in some run, or
 /// that lie outside the field of every detector in some run (no image of that run shows them);
 /// warnings for phantoms partly outside a detector's field in some runs, and for beads that are
-/// visible in no image at all. Every run is expanded, checked and dropped in turn.
-pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel]) -> Vec<Diagnostic> {
+/// visible in no image at all. Every run is expanded, checked and dropped in turn. `bvhs` holds
+/// each model's mesh in a BVH (`None` for a model without a mesh), built once by the caller.
+pub fn check_geometry(
+    loaded: &LoadedScenario,
+    models: &[PhantomModel],
+    bvhs: &[Option<Arc<MeshBvh>>],
+) -> Vec<Diagnostic> {
     let s = &loaded.scenario;
-    let bvhs: Vec<Option<MeshBvh>> = models
-        .iter()
-        .map(|m| m.mesh.as_ref().map(|mesh| MeshBvh::new(mesh)))
-        .collect();
     let total = s.run_count();
     let detectors = s.detectors.len();
     let findings = (0..total)
         .into_par_iter()
         .map(|i| {
             let run = run_at(s, models, i);
-            check_run(loaded, models, &bvhs, &run, i)
+            check_run(loaded, models, bvhs, &run, i)
         })
         .reduce(|| Findings::new(models, detectors), Findings::merge);
     report(loaded, models, &findings, total)
@@ -125,7 +128,7 @@ pub fn check_geometry(loaded: &LoadedScenario, models: &[PhantomModel]) -> Vec<D
 fn check_run(
     loaded: &LoadedScenario,
     models: &[PhantomModel],
-    bvhs: &[Option<MeshBvh>],
+    bvhs: &[Option<Arc<MeshBvh>>],
     run: &Run,
     index: u64,
 ) -> Findings {

@@ -118,6 +118,37 @@ struct Ptrs {
     v_r: f64,
 }
 
+/// The per-λ constants a PTRS trial reads besides λ (`b`, `2a`, `v_r`; module documentation),
+/// from one square root and one division: computed for a block of means at once by
+/// [`Poisson::fill_with_means`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct PtrsTrial {
+    b: f64,
+    two_a: f64,
+    v_r: f64,
+}
+
+impl PtrsTrial {
+    /// `s = √λ` (`sqrt` is correctly rounded: the bits of `libm::sqrt`), `b = 0.931 + 2.53·s`,
+    /// `a = −0.059 + 0.02483·b`, `v_r = 0.9277 − 3.6224/(b − 2)`.
+    #[inline(always)]
+    fn new(lambda: f64) -> PtrsTrial {
+        let b = 0.931 + 2.53 * lambda.sqrt();
+        let a = -0.059 + 0.02483 * b;
+        PtrsTrial {
+            b,
+            two_a: 2.0 * a,
+            v_r: 0.9277 - 3.6224 / (b - 2.0),
+        }
+    }
+}
+
+/// PTRS's `α⁻¹ = 1.1239 + 1.1328/(b − 3.4)`.
+#[inline(always)]
+fn inv_alpha(b: f64) -> f64 {
+    1.1239 + 1.1328 / (b - 3.4)
+}
+
 /// Outcome of the cheap part of one PTRS trial.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Trial {
@@ -189,24 +220,35 @@ impl Poisson {
         if !(lambda >= PTRS_THRESHOLD && lambda.is_finite()) {
             return Poisson::new(lambda).sample(rng);
         }
-        let (mut p, inv_alpha) = Ptrs::without_logs(lambda);
-        let mut have_logs = false;
-        loop {
-            let x1 = rng.next_u64();
-            let x2 = rng.next_u64();
-            let (k, us, v, trial) = p.trial(x1, x2);
-            match trial {
-                Trial::Accept => return k as u64,
-                Trial::Reject => {}
-                Trial::Slow => {
-                    if !have_logs {
-                        p.set_logs(inv_alpha);
-                        have_logs = true;
-                    }
-                    if p.decide_slow(k, us, v) {
-                        return k as u64;
-                    }
-                }
+        Ptrs::with_trial_constants(lambda, PtrsTrial::new(lambda)).sample_lazy_logs(rng)
+    }
+
+    /// One sample per mean, in order: `out[i]` is `sample_with_mean(means[i], rng)` (as a
+    /// double, exact below 2⁵³), and `rng` is left where those calls leave it.
+    ///
+    /// Faster than a loop of [`Poisson::sample_with_mean`]: the per-mean constants of PTRS (a
+    /// square root and a division) are computed for a block of means at a time, without
+    /// branches, before the block's trials, whose order and draws are unchanged.
+    ///
+    /// # Panics
+    /// When the slices differ in length, or a mean is negative, NaN or infinite (as
+    /// [`Poisson::new`]).
+    pub fn fill_with_means(means: &[f64], rng: &mut impl Rng, out: &mut [f64]) {
+        assert_eq!(means.len(), out.len(), "one sample per mean");
+        const CHUNK: usize = 64;
+        let mut trials = [PtrsTrial::default(); CHUNK];
+        for (m, o) in means.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
+            // Meaningless (never read) for λ < 10; no branch, so the block vectorizes.
+            for (t, &lambda) in trials.iter_mut().zip(m) {
+                *t = PtrsTrial::new(lambda);
+            }
+            for ((&lambda, o), &t) in m.iter().zip(o.iter_mut()).zip(&trials) {
+                let n = if lambda >= PTRS_THRESHOLD && lambda.is_finite() {
+                    Ptrs::with_trial_constants(lambda, t).sample_lazy_logs(rng)
+                } else {
+                    Poisson::new(lambda).sample(rng)
+                };
+                *o = n as f64;
             }
         }
     }
@@ -276,21 +318,48 @@ impl Ptrs {
     /// The PTRS constants of `λ ≥ 10` except the two logarithms (left NaN), and `α⁻¹`.
     #[inline]
     fn without_logs(lambda: f64) -> (Ptrs, f64) {
-        let s = libm::sqrt(lambda);
-        let b = 0.931 + 2.53 * s;
-        let a = -0.059 + 0.02483 * b;
-        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-        let v_r = 0.9277 - 3.6224 / (b - 2.0);
-        let ptrs = Ptrs {
+        let t = PtrsTrial::new(lambda);
+        (Ptrs::with_trial_constants(lambda, t), inv_alpha(t.b))
+    }
+
+    /// The constants of `λ ≥ 10` from those of its trials, the two logarithms left NaN. `a` is
+    /// `two_a / 2`, exact.
+    #[inline(always)]
+    fn with_trial_constants(lambda: f64, t: PtrsTrial) -> Ptrs {
+        Ptrs {
             lambda,
             ln_lambda: f64::NAN,
-            a,
-            two_a: 2.0 * a,
-            b,
+            a: 0.5 * t.two_a,
+            two_a: t.two_a,
+            b: t.b,
             ln_inv_alpha: f64::NAN,
-            v_r,
-        };
-        (ptrs, inv_alpha)
+            v_r: t.v_r,
+        }
+    }
+
+    /// One sample, computing the two logarithms only if a trial reaches the full test (as
+    /// [`Poisson::new`] computes them), so a mean used once costs no logarithm in most draws.
+    #[inline(always)]
+    fn sample_lazy_logs(mut self, rng: &mut impl Rng) -> u64 {
+        let mut have_logs = false;
+        loop {
+            let x1 = rng.next_u64();
+            let x2 = rng.next_u64();
+            let (k, us, v, trial) = self.trial(x1, x2);
+            match trial {
+                Trial::Accept => return k as u64,
+                Trial::Reject => {}
+                Trial::Slow => {
+                    if !have_logs {
+                        self.set_logs(inv_alpha(self.b));
+                        have_logs = true;
+                    }
+                    if self.decide_slow(k, us, v) {
+                        return k as u64;
+                    }
+                }
+            }
+        }
     }
 
     /// Computes `ln λ` and `ln α⁻¹` (needed only by the full acceptance test).
@@ -793,6 +862,36 @@ mod tests {
             }
         }
         assert_eq!(a.next_u64(), b.next_u64(), "same generator position");
+    }
+
+    #[test]
+    fn fill_with_means_equals_sample_with_mean_one_by_one() {
+        // Means of every method, mixed as across an image row, over block boundaries (64).
+        let means: Vec<f64> = (0..400)
+            .map(|i| match i % 7 {
+                0 => 0.0,
+                1 => 0.5 + (i % 13) as f64,
+                2 => 10.0,
+                3 => 9.999_999,
+                _ => 12.0 + 37.3 * i as f64 + 1e4 * (i % 5) as f64,
+            })
+            .collect();
+        for n in [0, 1, 63, 64, 65, 129, 400] {
+            let (mut a, mut b) = (rng(41), rng(41));
+            let mut out = vec![f64::NAN; n];
+            Poisson::fill_with_means(&means[..n], &mut a, &mut out);
+            for (i, &lambda) in means[..n].iter().enumerate() {
+                let x = Poisson::sample_with_mean(lambda, &mut b);
+                assert_eq!(out[i], x as f64, "n {n}, pixel {i}, λ={lambda}");
+            }
+            assert_eq!(a.next_u64(), b.next_u64(), "same generator position, n {n}");
+        }
+    }
+
+    #[test]
+    #[should_panic]
+    fn fill_with_means_refuses_a_negative_mean() {
+        Poisson::fill_with_means(&[5.0, -1.0], &mut rng(0), &mut [0.0; 2]);
     }
 
     #[test]

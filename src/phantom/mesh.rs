@@ -23,9 +23,9 @@ impl TriMesh {
             return Err("the mesh has no triangles".into());
         }
         let n = self.vertices.len() as u32;
-        // Directed edge -> how many times it is used.
-        let mut directed: HashMap<(u32, u32), u32> =
-            HashMap::with_capacity(self.triangles.len() * 3);
+        // Every directed edge (u, v) as the number u·2³² + v, sorted: equal neighbours are an
+        // edge used twice in one direction, and the reverse of each is found by binary search.
+        let mut directed: Vec<u64> = Vec::with_capacity(self.triangles.len() * 3);
         for (t, tri) in self.triangles.iter().enumerate() {
             if tri.iter().any(|&i| i >= n) {
                 return Err(format!(
@@ -38,18 +38,19 @@ impl TriMesh {
                 return Err(format!("triangle {t} has zero area (degenerate)"));
             }
             for (u, v) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-                *directed.entry((u, v)).or_default() += 1;
+                directed.push(edge_key(u, v));
             }
         }
-        let mut keys: Vec<_> = directed.iter().collect();
-        keys.sort_unstable();
-        for (&(u, v), &count) in keys {
-            if count > 1 {
+        directed.sort_unstable();
+        for run in directed.chunk_by(|a, b| a == b) {
+            let (u, v) = ((run[0] >> 32) as u32, run[0] as u32);
+            if run.len() > 1 {
                 return Err(format!(
-                    "edge {u}-{v} is traversed {count} times in the same direction: triangles are inconsistently oriented or the mesh is not manifold"
+                    "edge {u}-{v} is traversed {} times in the same direction: triangles are inconsistently oriented or the mesh is not manifold",
+                    run.len()
                 ));
             }
-            if !directed.contains_key(&(v, u)) {
+            if directed.binary_search(&edge_key(v, u)).is_err() {
                 return Err(format!(
                     "edge {u}-{v} belongs to one triangle only: the mesh has a hole (it is not closed)"
                 ));
@@ -153,6 +154,11 @@ impl TriMesh {
             triangles,
         }
     }
+}
+
+/// The directed edge `u → v` as one sortable number, `u·2³² + v`.
+fn edge_key(u: u32, v: u32) -> u64 {
+    (u64::from(u) << 32) | u64::from(v)
 }
 
 #[cfg(test)]

@@ -38,25 +38,41 @@ impl Digitiser {
         }
     }
 
-    /// Whether the signal is energy (so [`Digitiser::detect`] needs `E`).
+    /// Whether the signal is energy (so [`Digitiser::detect_row`] reads `E`).
     pub(crate) fn integrating(&self) -> bool {
         self.integrating
     }
 
-    /// The noisy signal `S` of a pixel of expected quanta `q` and energy `e` (keV, read only
-    /// when integrating): `n ~ Poisson(q)` drawn from `rng` (mean clamped to `[0, LAMBDA_MAX]`,
-    /// NaN as 0), then `S = n` (photon counting) or `n · e/q` (energy integrating, 0 when
-    /// `q ≤ 0`).
-    #[inline(always)]
-    pub(crate) fn detect(&self, q: f64, e: f64, rng: &mut impl Rng) -> f64 {
-        let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
-        let n = Poisson::sample_with_mean(lambda, rng) as f64;
-        if !self.integrating {
-            n
-        } else if q > 0.0 {
-            n * (e / q)
-        } else {
-            0.0
+    /// The noisy signals `S` of a row of pixels of expected quanta `q` and energy `e` (keV, read
+    /// only when integrating), left to right: per pixel `n ~ Poisson(q)` drawn from `rng` (mean
+    /// clamped to `[0, LAMBDA_MAX]`, NaN as 0; [`Poisson::fill_with_means`], the draws of one
+    /// [`Poisson::sample_with_mean`] per pixel), then `S = n` (photon counting) or `n · e/q`
+    /// (energy integrating, 0 when `q ≤ 0`).
+    ///
+    /// # Panics
+    /// When the three slices differ in length.
+    pub(crate) fn detect_row(&self, q: &[f64], e: &[f64], rng: &mut impl Rng, signal: &mut [f64]) {
+        assert!(
+            q.len() == e.len() && q.len() == signal.len(),
+            "one q, e, S per pixel"
+        );
+        const CHUNK: usize = 256;
+        let mut lambda = [0.0; CHUNK];
+        for ((q, e), s) in q
+            .chunks(CHUNK)
+            .zip(e.chunks(CHUNK))
+            .zip(signal.chunks_mut(CHUNK))
+        {
+            let lambda = &mut lambda[..q.len()];
+            for (l, &q) in lambda.iter_mut().zip(q) {
+                *l = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
+            }
+            Poisson::fill_with_means(lambda, rng, s);
+            if self.integrating {
+                for ((s, &q), &e) in s.iter_mut().zip(q).zip(e) {
+                    *s = if q > 0.0 { *s * (e / q) } else { 0.0 };
+                }
+            }
         }
     }
 
@@ -153,12 +169,9 @@ pub(crate) fn radiograph(
 /// platform (its rounding errors, a few ulp of `i_max`, are far smaller than the
 /// `i_max · MARGIN / range` by which the ratio stays off a step). Otherwise, or when a step
 /// lies within the margin, [`radiograph`] itself decides. So the output is [`radiograph`]'s,
-/// bit for bit (test `table_gives_the_formula_s_values`), and the guess only saves time.
-///
-/// The guess needs no logarithm when `exp(range) < 2^`[`MAX_BINADES`]: the ratio's top bits
-/// (exponent and [`BUCKET_BITS`] bits of mantissa) index a bucket holding the `k` of its lower
-/// edge, and `k` steps up while `T_{k+1}` ≤ ratio (a bucket is 2⁻¹² wide, a step `range/i_max`
-/// in `ln`: a few steps at most). Wider ranges guess with the platform's `ln`.
+/// bit for bit (test `table_gives_the_formula_s_values`), and the guess only saves time. (A
+/// guess from a table of the ratio's top bits, tried in 0.6.0, was slower: its walk over the
+/// steps branches unpredictably.)
 #[derive(Debug, Clone)]
 pub(crate) struct RadiographTable {
     range: f64,
@@ -168,26 +181,10 @@ pub(crate) struct RadiographTable {
     scale: f64,
     /// `T_k` for `k = 0..=i_max + 1` (`T_0 = 0`, `T_{i_max+1} = +∞`).
     steps: Vec<f64>,
-    /// Per bucket of ratios from 1 (by their top bits), the `k` of its lower edge; empty when
-    /// the range spans more than [`MAX_BINADES`] binades.
-    buckets: Vec<u32>,
 }
 
 /// Relative distance from a step below which [`RadiographTable`] defers to the formula.
 const MARGIN: f64 = 1e-9;
-
-/// Mantissa bits of a ratio that pick its bucket.
-const BUCKET_BITS: u32 = 12;
-
-/// Buckets are used when `exp(range)` is below `2^MAX_BINADES`.
-const MAX_BINADES: u64 = 64;
-
-/// The bucket index of a ratio ≥ 1: its bits above the low `52 − BUCKET_BITS` mantissa bits,
-/// counted from 1.0's.
-#[inline(always)]
-fn bucket(ratio: f64) -> usize {
-    ((ratio.to_bits() >> (52 - BUCKET_BITS)) - (1.0f64.to_bits() >> (52 - BUCKET_BITS))) as usize
-}
 
 impl RadiographTable {
     /// The table for `range` (> 0, finite) and `i_max`; `exp_range` as for [`radiograph`].
@@ -199,29 +196,12 @@ impl RadiographTable {
             steps.push(libm::exp((k as f64 - 0.5) * range / f64::from(i_max)));
         }
         steps.push(f64::INFINITY);
-        let mut buckets = Vec::new();
-        if exp_range.is_finite()
-            && exp_range >= 1.0
-            && bucket(exp_range) >> BUCKET_BITS < MAX_BINADES as usize
-        {
-            // Every bucket up to the one holding exp(range), with the k of its lower edge.
-            let (mut k, first) = (0usize, 1.0f64.to_bits() >> (52 - BUCKET_BITS));
-            buckets.reserve(bucket(exp_range) + 1);
-            for b in 0..=bucket(exp_range) as u64 {
-                let edge = f64::from_bits((first + b) << (52 - BUCKET_BITS));
-                while steps[k + 1] <= edge {
-                    k += 1;
-                }
-                buckets.push(k as u32);
-            }
-        }
         RadiographTable {
             range,
             exp_range,
             i_max,
             scale: f64::from(i_max) / range,
             steps,
-            buckets,
         }
     }
 
@@ -231,18 +211,8 @@ impl RadiographTable {
         if signal > 0.0 {
             let ratio = open_signal / signal;
             if ratio > 1.0 && ratio < self.exp_range {
-                let k = match self.buckets.get(bucket(ratio)) {
-                    Some(&low) => {
-                        let mut k = low as usize;
-                        while self.steps[k + 1] <= ratio {
-                            k += 1;
-                        }
-                        k
-                    }
-                    None => {
-                        (ratio.ln() * self.scale + 0.5).clamp(0.0, f64::from(self.i_max)) as usize
-                    }
-                };
+                // The conversion saturates (a negative guess is 0), so `k + 1` indexes `steps`.
+                let k = ((ratio.ln() * self.scale + 0.5) as usize).min(usize::from(self.i_max));
                 if self.steps[k] * (1.0 + MARGIN) <= ratio
                     && ratio * (1.0 + MARGIN) < self.steps[k + 1]
                 {
@@ -282,11 +252,10 @@ mod tests {
             (2.5, 255),
             (11.0, 1),
             (50.0, 4095),
+            (800.0, 4095),
         ] {
             let er = libm::exp(range);
             let table = RadiographTable::new(range, er, i_max);
-            // Buckets up to 2⁶⁴ (range ≤ 44); the wider range guesses with `ln`.
-            assert_eq!(table.buckets.is_empty(), range > 44.0, "range {range}");
             let check = |s: f64, s0: f64| {
                 assert_eq!(
                     table.value(s, s0),

@@ -496,6 +496,8 @@ struct RenderScratch {
     fluence: Vec<f64>,
     quanta: Vec<f64>,
     energy_kev: Vec<f64>,
+    /// The noisy signal `S` of a row.
+    signal: Vec<f64>,
 }
 
 /// Renders one attenuation image: expected quanta, Poisson noise on every pixel, signal, then
@@ -531,10 +533,11 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             let fluence = &s.fluence;
             let f_max = fluence.iter().fold(0.0f64, |m, &f| m.max(f));
             let mut rng = key.row_rng(j as u32);
+            s.signal.resize(w, 0.0);
+            digitiser.detect_row(&s.quanta, &s.energy_kev, &mut rng, &mut s.signal);
             let mut saturated = 0usize;
             for i in 0..w {
-                let signal = digitiser.detect(s.quanta[i], s.energy_kev[i], &mut rng);
-                let (value, clipped) = digitiser.store(signal, fluence[i] * open);
+                let (value, clipped) = digitiser.store(s.signal[i], fluence[i] * open);
                 saturated += usize::from(clipped);
                 row[i] = value;
             }

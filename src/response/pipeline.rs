@@ -85,11 +85,12 @@ pub fn render_expected(
         None => pixels
             .par_chunks_mut(w)
             .enumerate()
-            .map(|(j, row)| {
+            .map_init(Vec::new, |signal, (j, row)| {
                 let k = j * w..(j + 1) * w;
                 let (q, e) = (&quanta[k.clone()], &energy_kev[k.clone()]);
                 let mut rng = key.row_rng(j as u32);
-                let signal = |i: usize| digitiser.detect(q[i], e[i], &mut rng);
+                signal.resize(w, 0.0);
+                digitiser.detect_row(q, e, &mut rng, signal);
                 store_row(
                     &digitiser,
                     unsharp,
@@ -108,9 +109,7 @@ pub fn render_expected(
                 let k = j * w..(j + 1) * w;
                 let (q, e) = (&quanta[k.clone()], &energy_kev[k]);
                 let mut rng = key.row_rng(j as u32);
-                for (i, s) in s.iter_mut().enumerate() {
-                    *s = digitiser.detect(q[i], e[i], &mut rng);
-                }
+                digitiser.detect_row(q, e, &mut rng, s);
             });
             // 3. The PSF on the signal, and on the flat field of a radiograph.
             let signal = convolve(&signal, w, h, psf.kernel_x(), psf.kernel_y());
@@ -130,13 +129,12 @@ pub fn render_expected(
                 .enumerate()
                 .map(|(j, row)| {
                     let k = j * w..(j + 1) * w;
-                    let s = &signal[k.clone()];
                     store_row(
                         &digitiser,
                         unsharp,
                         electronic_key,
                         j,
-                        |i| s[i],
+                        &signal[k.clone()],
                         &open[k],
                         row,
                     )
@@ -152,14 +150,14 @@ pub fn render_expected(
 }
 
 /// Electronic noise (when `unsharp` has some) and digitisation of row `j`: pixel `i` has the
-/// signal `signal(i)` (called once per pixel, left to right) and the open field `open[i]`.
+/// signal `signal[i]` and the open field `open[i]`.
 /// Returns the pixels clipped at the top.
 fn store_row(
     digitiser: &Digitiser,
     unsharp: &Unsharpness,
     electronic_key: &NoiseKey,
     j: usize,
-    mut signal: impl FnMut(usize) -> f64,
+    signal: &[f64],
     open: &[f64],
     row: &mut [u16],
 ) -> usize {
@@ -167,7 +165,7 @@ fn store_row(
     match unsharp.electronic_sd_dn() {
         None => {
             for (i, px) in row.iter_mut().enumerate() {
-                let (value, clipped) = digitiser.store(signal(i), open[i]);
+                let (value, clipped) = digitiser.store(signal[i], open[i]);
                 saturated += usize::from(clipped);
                 *px = value;
             }
@@ -175,7 +173,7 @@ fn store_row(
         Some(sd) => {
             let mut rng = electronic_key.row_rng(j as u32);
             for (i, px) in row.iter_mut().enumerate() {
-                let s = signal(i);
+                let s = signal[i];
                 let noise = sd * standard_normal(&mut rng);
                 let (value, clipped) = digitiser.store_with_read_noise(s, open[i], noise);
                 saturated += usize::from(clipped);

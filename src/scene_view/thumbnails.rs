@@ -25,6 +25,7 @@ pub fn first_run_thumbnails(checked: Checked) -> std::io::Result<Vec<Vec<ImageVi
     let plan = Plan {
         loaded,
         models: checked.models,
+        bvhs: checked.bvhs,
         setup: checked.setup,
         previews: false,
         runs: vec![first],

@@ -32,7 +32,7 @@ pub use mesh_bvh::MeshBvh;
 pub use path_length::{PathLengths, path_lengths, path_lengths_traced};
 pub use window::Projected;
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use crate::geometry::{DetectorFrame, Pose};
 
@@ -256,30 +256,91 @@ impl Object<'_> {
     /// The length (mm) of the segment from `source` to `target` inside an analytic solid
     /// (sphere, cuboid, elliptic cylinder); `None` for a mesh.
     fn chord_mm(&self, source: DVec3, target: DVec3) -> Option<f64> {
-        let d = target - source;
-        let interval = match self {
+        Some(self.chords_from(source)?.length_mm(target))
+    }
+
+    /// An analytic solid seen from `source`, for the chords to many targets; `None` for a mesh.
+    fn chords_from(&self, source: DVec3) -> Option<Chords> {
+        let solid = match self {
             Object::Sphere {
                 centre_mm,
                 radius_mm,
-            } => shapes::sphere_interval(*centre_mm, *radius_mm, source, d),
-            Object::Cuboid { pose, half_size_mm } => shapes::cuboid_interval(
-                *half_size_mm,
-                pose.to_local(source),
-                pose.rotation.transpose() * d,
-            ),
+            } => Solid::Sphere {
+                centre_mm: *centre_mm,
+                radius_mm: *radius_mm,
+            },
+            Object::Cuboid { pose, half_size_mm } => Solid::Cuboid {
+                half_size_mm: *half_size_mm,
+                source_local: pose.to_local(source),
+                to_local: pose.rotation.transpose(),
+            },
             Object::EllipticCylinder {
                 pose,
                 radii_mm,
                 half_length_mm,
-            } => shapes::cylinder_interval(
-                *radii_mm,
-                *half_length_mm,
-                pose.to_local(source),
-                pose.rotation.transpose() * d,
-            ),
+            } => Solid::EllipticCylinder {
+                radii_mm: *radii_mm,
+                half_length_mm: *half_length_mm,
+                source_local: pose.to_local(source),
+                to_local: pose.rotation.transpose(),
+            },
             Object::Mesh { .. } => return None,
         };
-        Some(interval.map_or(0.0, |t| shapes::segment_length_mm(t, d)))
+        Some(Chords { source, solid })
+    }
+}
+
+/// An analytic solid seen from one source: the source and, for a posed solid, the source in the
+/// solid's frame and the rotation into it, computed once for the chords to every pixel (the same
+/// operations, so the same bits, as computing them per pixel).
+struct Chords {
+    source: DVec3,
+    solid: Solid,
+}
+
+enum Solid {
+    Sphere {
+        centre_mm: DVec3,
+        radius_mm: f64,
+    },
+    Cuboid {
+        half_size_mm: DVec3,
+        source_local: DVec3,
+        to_local: DMat3,
+    },
+    EllipticCylinder {
+        radii_mm: [f64; 2],
+        half_length_mm: f64,
+        source_local: DVec3,
+        to_local: DMat3,
+    },
+}
+
+impl Chords {
+    /// The length (mm) of the segment from the source to `target` inside the solid.
+    #[inline]
+    fn length_mm(&self, target: DVec3) -> f64 {
+        let d = target - self.source;
+        let interval = match &self.solid {
+            Solid::Sphere {
+                centre_mm,
+                radius_mm,
+            } => shapes::sphere_interval(*centre_mm, *radius_mm, self.source, d),
+            Solid::Cuboid {
+                half_size_mm,
+                source_local,
+                to_local,
+            } => shapes::cuboid_interval(*half_size_mm, *source_local, *to_local * d),
+            Solid::EllipticCylinder {
+                radii_mm,
+                half_length_mm,
+                source_local,
+                to_local,
+            } => {
+                shapes::cylinder_interval(*radii_mm, *half_length_mm, *source_local, *to_local * d)
+            }
+        };
+        interval.map_or(0.0, |t| shapes::segment_length_mm(t, d))
     }
 }
 

@@ -92,12 +92,17 @@ pub fn path_lengths_traced(
     if width > 0 {
         // Rows in parallel: every pixel's value is its own, so the result does not depend on
         // the number of threads.
+        let chords = object.chords_from(source_mm);
         length_mm
             .par_chunks_mut(width)
             .zip(j0..j1)
             .for_each(|(row, j)| {
                 for (l, i) in row.iter_mut().zip(i0..i1) {
-                    *l = traced_length_mm(object, source_mm, frame.pixel_centre_world(i, j));
+                    let target = frame.pixel_centre_world(i, j);
+                    *l = match &chords {
+                        Some(c) => c.length_mm(target),
+                        None => traced_length_mm(object, source_mm, target),
+                    };
                 }
             });
     }
