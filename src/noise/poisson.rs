@@ -220,7 +220,7 @@ impl Poisson {
         if !(lambda >= PTRS_THRESHOLD && lambda.is_finite()) {
             return Poisson::new(lambda).sample(rng);
         }
-        Ptrs::with_trial_constants(lambda, PtrsTrial::new(lambda)).sample_lazy_logs(rng)
+        Ptrs::with_trial_constants(lambda, PtrsTrial::new(lambda)).sample_lazy_logs(rng) as u64
     }
 
     /// One sample per mean, in order: `out[i]` is `sample_with_mean(means[i], rng)` (as a
@@ -243,12 +243,12 @@ impl Poisson {
                 *t = PtrsTrial::new(lambda);
             }
             for ((&lambda, o), &t) in m.iter().zip(o.iter_mut()).zip(&trials) {
-                let n = if lambda >= PTRS_THRESHOLD && lambda.is_finite() {
+                // PTRS's `k` is already the double (no conversion through u64).
+                *o = if lambda >= PTRS_THRESHOLD && lambda.is_finite() {
                     Ptrs::with_trial_constants(lambda, t).sample_lazy_logs(rng)
                 } else {
-                    Poisson::new(lambda).sample(rng)
+                    Poisson::new(lambda).sample(rng) as f64
                 };
-                *o = n as f64;
             }
         }
     }
@@ -337,17 +337,18 @@ impl Ptrs {
         }
     }
 
-    /// One sample, computing the two logarithms only if a trial reaches the full test (as
-    /// [`Poisson::new`] computes them), so a mean used once costs no logarithm in most draws.
+    /// One sample (an integer-valued double ≥ 0, below 2⁵³), computing the two logarithms only
+    /// if a trial reaches the full test (as [`Poisson::new`] computes them), so a mean used once
+    /// costs no logarithm in most draws.
     #[inline(always)]
-    fn sample_lazy_logs(mut self, rng: &mut impl Rng) -> u64 {
+    fn sample_lazy_logs(mut self, rng: &mut impl Rng) -> f64 {
         let mut have_logs = false;
         loop {
             let x1 = rng.next_u64();
             let x2 = rng.next_u64();
             let (k, us, v, trial) = self.trial(x1, x2);
             match trial {
-                Trial::Accept => return k as u64,
+                Trial::Accept => return k,
                 Trial::Reject => {}
                 Trial::Slow => {
                     if !have_logs {
@@ -355,7 +356,7 @@ impl Ptrs {
                         have_logs = true;
                     }
                     if self.decide_slow(k, us, v) {
-                        return k as u64;
+                        return k;
                     }
                 }
             }

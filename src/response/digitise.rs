@@ -16,8 +16,8 @@ pub(crate) struct Digitiser {
     offset: f64,
     gain: f64,
     i_max: u16,
-    /// The radiograph table (`None` for raw values).
-    table: Option<RadiographTable>,
+    /// The radiograph's values (`None` for raw values).
+    table: Option<RadiographValues>,
 }
 
 impl Digitiser {
@@ -25,7 +25,7 @@ impl Digitiser {
     pub(crate) fn new(det: &DetectorModel) -> Digitiser {
         let table = match det.polarity {
             Polarity::Radiograph { range } => {
-                Some(RadiographTable::new(range, libm::exp(range), det.i_max))
+                Some(RadiographValues::new(range, libm::exp(range), det.i_max))
             }
             Polarity::Raw => None,
         };
@@ -159,49 +159,41 @@ pub(crate) fn radiograph(
     quantise(f64::from(i_max) * t, i_max)
 }
 
-/// [`radiograph`]'s values without a `libm::log` per pixel: the same `u16` for every input,
-/// found from a table of the ratios where the value steps.
+/// [`radiograph`]'s values, the same `u16` for every input, with one multiplication in place
+/// of the formula's division and rounding steps: a pixel whose value is far from a step of the
+/// stored value is decided at once, the others by [`radiograph`] itself.
 ///
-/// Value `k` (`1 ≤ k ≤ i_max`) needs `i_max · ln(ratio) / range ≥ k − ½`, i.e. a ratio at or
-/// above `T_k = exp((k − ½)·range / i_max)`. A guess `k` from the platform's `ln` (fast, but not
-/// the same bits everywhere) is accepted only when the ratio lies inside `[T_k, T_{k+1})` with a
-/// relative margin of [`MARGIN`] on both sides; there the exact formula gives `k` on every
-/// platform (its rounding errors, a few ulp of `i_max`, are far smaller than the
-/// `i_max · MARGIN / range` by which the ratio stays off a step). Otherwise, or when a step
-/// lies within the margin, [`radiograph`] itself decides. So the output is [`radiograph`]'s,
-/// bit for bit (test `table_gives_the_formula_s_values`), and the guess only saves time. (A
-/// guess from a table of the ratio's top bits, tried in 0.6.0, was slower: its walk over the
-/// steps branches unpredictably.)
+/// With `L = libm::log(ratio)` (the formula's own logarithm, so the same bits) and
+/// `scale = i_max / range` (rounded once), it takes `g = L·scale + ½` and accepts `⌊g⌋` when
+/// `1 < ratio < exp(range)`, `⌊g⌋ < i_max` and `g` lies more than [`MARGIN`] from an integer.
+/// The formula's stored value is `⌊fl(i_max · fl(L/range)) + ½⌋` (rounded half up,
+/// [`quantise`]); with `V = i_max·L/range ≤ i_max < 2¹⁶` in real numbers, both `g` and the
+/// formula's `fl(v + ½)` differ from `V + ½` by at most `2⁻⁵⁰·V + 2·2⁻³⁷ < 10⁻¹⁰` (two
+/// relative roundings each on the product, one absolute rounding of the sum in `[0, 2¹⁶)`),
+/// so the two floors agree whenever `g` is farther than `2·10⁻¹⁰` from an integer, which the
+/// margin of 10⁻⁶ guarantees. `⌊g⌋ ≥ i_max` (the top, where the formula clamps) and the
+/// shortcuts of [`radiograph`] go to the formula. No assumption on any platform function:
+/// `libm` and IEEE arithmetic only. Test `fast_values_are_the_formula_s`.
 #[derive(Debug, Clone)]
-pub(crate) struct RadiographTable {
+pub(crate) struct RadiographValues {
     range: f64,
     exp_range: f64,
     i_max: u16,
     /// `i_max / range`.
     scale: f64,
-    /// `T_k` for `k = 0..=i_max + 1` (`T_0 = 0`, `T_{i_max+1} = +∞`).
-    steps: Vec<f64>,
 }
 
-/// Relative distance from a step below which [`RadiographTable`] defers to the formula.
-const MARGIN: f64 = 1e-9;
+/// Distance of `g` from an integer below which [`RadiographValues`] defers to the formula.
+const MARGIN: f64 = 1e-6;
 
-impl RadiographTable {
-    /// The table for `range` (> 0, finite) and `i_max`; `exp_range` as for [`radiograph`].
-    pub(crate) fn new(range: f64, exp_range: f64, i_max: u16) -> RadiographTable {
-        let n = usize::from(i_max);
-        let mut steps = Vec::with_capacity(n + 2);
-        steps.push(0.0);
-        for k in 1..=n {
-            steps.push(libm::exp((k as f64 - 0.5) * range / f64::from(i_max)));
-        }
-        steps.push(f64::INFINITY);
-        RadiographTable {
+impl RadiographValues {
+    /// For `range` (> 0, finite) and `i_max`; `exp_range` as for [`radiograph`].
+    pub(crate) fn new(range: f64, exp_range: f64, i_max: u16) -> RadiographValues {
+        RadiographValues {
             range,
             exp_range,
             i_max,
             scale: f64::from(i_max) / range,
-            steps,
         }
     }
 
@@ -211,11 +203,11 @@ impl RadiographTable {
         if signal > 0.0 {
             let ratio = open_signal / signal;
             if ratio > 1.0 && ratio < self.exp_range {
-                // The conversion saturates (a negative guess is 0), so `k + 1` indexes `steps`.
-                let k = ((ratio.ln() * self.scale + 0.5) as usize).min(usize::from(self.i_max));
-                if self.steps[k] * (1.0 + MARGIN) <= ratio
-                    && ratio * (1.0 + MARGIN) < self.steps[k + 1]
-                {
+                let g = libm::log(ratio) * self.scale + 0.5;
+                // g > 0.5 (L ≥ 0), so the conversion is the floor; it saturates far above i_max.
+                let k = g as u32;
+                let frac = g - f64::from(k);
+                if frac > MARGIN && frac < 1.0 - MARGIN && k < u32::from(self.i_max) {
                     return k as u16;
                 }
             }
@@ -243,7 +235,7 @@ mod tests {
     }
 
     #[test]
-    fn table_gives_the_formula_s_values() {
+    fn fast_values_are_the_formula_s() {
         // Every step of a 12-bit and a 16-bit image is hit from both sides, plus a sweep of
         // ratios over the whole range and the shortcuts.
         for (range, i_max) in [
@@ -255,7 +247,11 @@ mod tests {
             (800.0, 4095),
         ] {
             let er = libm::exp(range);
-            let table = RadiographTable::new(range, er, i_max);
+            let table = RadiographValues::new(range, er, i_max);
+            // The ratios where the stored value steps: exp((k − ½)·range/i_max).
+            let steps: Vec<f64> = (0..=usize::from(i_max))
+                .map(|k| libm::exp((k as f64 - 0.5) * range / f64::from(i_max)))
+                .collect();
             let check = |s: f64, s0: f64| {
                 assert_eq!(
                     table.value(s, s0),
@@ -264,7 +260,7 @@ mod tests {
                 );
             };
             for k in 1..=usize::from(i_max) {
-                let t = table.steps[k];
+                let t = steps[k];
                 for r in [
                     t,
                     t * (1.0 + 1e-16),

@@ -60,8 +60,9 @@
 //! # Determinism and speed
 //!
 //! The Beer–Lambert factor uses this module's own [`exp`] (pure IEEE arithmetic, within 2 ulp of
-//! `libm::exp`), the radiograph logarithm `libm::log` (its values found through a table of the
-//! ratios where the stored value steps, bit for bit the formula's), the sampler the project's own. Path
+//! `libm::exp`), the radiograph logarithm `libm::log` (a stored value far from a step is decided
+//! with one multiplication instead of the formula's division, bit for bit the formula's value),
+//! the sampler the project's own, its per-pixel constants computed for blocks of pixels. Path
 //! lengths arrive as [`Layer`]s (one solid's rectangle of lengths, added to or taken from one
 //! material) and the fluence as a [`PointSourceFluence`]; both are turned into values one row at
 //! a time inside the row loop, so no W×H image per material is held. Pixels whose lengths are

@@ -20,6 +20,7 @@
 //! projected onto the detector (the projection of a convex hull is the convex hull of the
 //! projections, so the corners' pixel rectangle bounds the object's shadow).
 
+mod chord_row;
 mod crossings;
 mod mesh_bvh;
 mod path_length;
@@ -32,7 +33,9 @@ pub use mesh_bvh::MeshBvh;
 pub use path_length::{PathLengths, path_lengths, path_lengths_traced};
 pub use window::Projected;
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
+
+use chord_row::{Posed, RowSolid};
 
 use crate::geometry::{DetectorFrame, Pose};
 
@@ -261,6 +264,11 @@ impl Object<'_> {
 
     /// An analytic solid seen from `source`, for the chords to many targets; `None` for a mesh.
     fn chords_from(&self, source: DVec3) -> Option<Chords> {
+        let posed = |pose: &Pose| Posed {
+            source,
+            source_local: pose.to_local(source),
+            to_local: pose.rotation.transpose(),
+        };
         let solid = match self {
             Object::Sphere {
                 centre_mm,
@@ -269,21 +277,23 @@ impl Object<'_> {
                 centre_mm: *centre_mm,
                 radius_mm: *radius_mm,
             },
-            Object::Cuboid { pose, half_size_mm } => Solid::Cuboid {
-                half_size_mm: *half_size_mm,
-                source_local: pose.to_local(source),
-                to_local: pose.rotation.transpose(),
-            },
+            Object::Cuboid { pose, half_size_mm } => Solid::Posed(
+                posed(pose),
+                RowSolid::Cuboid {
+                    half_size_mm: *half_size_mm,
+                },
+            ),
             Object::EllipticCylinder {
                 pose,
                 radii_mm,
                 half_length_mm,
-            } => Solid::EllipticCylinder {
-                radii_mm: *radii_mm,
-                half_length_mm: *half_length_mm,
-                source_local: pose.to_local(source),
-                to_local: pose.rotation.transpose(),
-            },
+            } => Solid::Posed(
+                posed(pose),
+                RowSolid::EllipticCylinder {
+                    radii_mm: *radii_mm,
+                    half_length_mm: *half_length_mm,
+                },
+            ),
             Object::Mesh { .. } => return None,
         };
         Some(Chords { source, solid })
@@ -303,17 +313,8 @@ enum Solid {
         centre_mm: DVec3,
         radius_mm: f64,
     },
-    Cuboid {
-        half_size_mm: DVec3,
-        source_local: DVec3,
-        to_local: DMat3,
-    },
-    EllipticCylinder {
-        radii_mm: [f64; 2],
-        half_length_mm: f64,
-        source_local: DVec3,
-        to_local: DMat3,
-    },
+    /// A cuboid or an elliptic cylinder at a pose.
+    Posed(Posed, RowSolid),
 }
 
 impl Chords {
@@ -326,21 +327,36 @@ impl Chords {
                 centre_mm,
                 radius_mm,
             } => shapes::sphere_interval(*centre_mm, *radius_mm, self.source, d),
-            Solid::Cuboid {
-                half_size_mm,
-                source_local,
-                to_local,
-            } => shapes::cuboid_interval(*half_size_mm, *source_local, *to_local * d),
-            Solid::EllipticCylinder {
-                radii_mm,
-                half_length_mm,
-                source_local,
-                to_local,
-            } => {
-                shapes::cylinder_interval(*radii_mm, *half_length_mm, *source_local, *to_local * d)
+            Solid::Posed(p, RowSolid::Cuboid { half_size_mm }) => {
+                shapes::cuboid_interval(*half_size_mm, p.source_local, p.to_local * d)
             }
+            Solid::Posed(
+                p,
+                RowSolid::EllipticCylinder {
+                    radii_mm,
+                    half_length_mm,
+                },
+            ) => shapes::cylinder_interval(
+                *radii_mm,
+                *half_length_mm,
+                p.source_local,
+                p.to_local * d,
+            ),
         };
         interval.map_or(0.0, |t| shapes::segment_length_mm(t, d))
+    }
+
+    /// [`Chords::length_mm`] for each of `targets`, into `out`: bit for bit the same values, a
+    /// posed solid's row by the branch-free kernels of `chord_row`.
+    fn lengths_mm(&self, targets: &[DVec3], out: &mut [f64]) {
+        match &self.solid {
+            Solid::Sphere { .. } => {
+                for (o, &t) in out.iter_mut().zip(targets) {
+                    *o = self.length_mm(t);
+                }
+            }
+            Solid::Posed(p, solid) => chord_row::lengths(p, *solid, targets, out),
+        }
     }
 }
 

@@ -96,13 +96,16 @@ pub fn path_lengths_traced(
         length_mm
             .par_chunks_mut(width)
             .zip(j0..j1)
-            .for_each(|(row, j)| {
-                for (l, i) in row.iter_mut().zip(i0..i1) {
-                    let target = frame.pixel_centre_world(i, j);
-                    *l = match &chords {
-                        Some(c) => c.length_mm(target),
-                        None => traced_length_mm(object, source_mm, target),
-                    };
+            .for_each_init(Vec::new, |targets, (row, j)| {
+                targets.clear();
+                targets.extend((i0..i1).map(|i| frame.pixel_centre_world(i, j)));
+                match &chords {
+                    Some(c) => c.lengths_mm(targets, row),
+                    None => {
+                        for (l, &target) in row.iter_mut().zip(targets.iter()) {
+                            *l = traced_length_mm(object, source_mm, target);
+                        }
+                    }
                 }
             });
     }
