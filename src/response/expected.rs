@@ -26,7 +26,9 @@
 //! 4-lane vectors with intrinsics (`covered_sums_avx2`, [`super::exp::exp_avx2`]): the same
 //! IEEE operations in the same order, multiplies and adds never fused, so the values are bit for
 //! bit those of the scalar loop (tests `avx2_sums_equal_scalar`, `avx2_lanes_equal_scalar`);
-//! measured 2× faster on the realistic knee image. Other CPUs run the scalar loop.
+//! measured 2× faster on the realistic knee image. It also skips, per block, the materials none
+//! of its pixels crosses (adding μ·0 = +0 to a sum ≥ +0 changes no bit). Other CPUs run the
+//! scalar loop.
 
 use super::exp::exp;
 use super::transmission::Transmission;
@@ -237,16 +239,26 @@ unsafe fn covered_sums_avx2<const ENERGY: bool>(c: &Covered, quanta: &mut [f64],
     use std::arch::x86_64::*;
     const _: () = assert!(LANES == 8, "two AVX2 vectors per block");
     let slots = c.slots;
+    let mut used = Vec::with_capacity(slots);
     for (block, lengths) in c
         .covered
         .chunks(LANES)
         .zip(c.lengths.chunks_exact(slots * LANES))
     {
+        // The materials with a length in some lane of the block. A zero length adds μ·0 = +0 to
+        // a sum that is ≥ +0, which changes no bit, so the others are skipped.
+        used.clear();
+        for (k, l) in lengths.chunks_exact(LANES).enumerate() {
+            if l.iter().any(|&v| v != 0.0) {
+                used.push(k);
+            }
+        }
         let zero = _mm256_setzero_pd();
         let (mut q0, mut q1, mut e0, mut e1) = (zero, zero, zero, zero);
         for (b, mu_b) in c.mu.chunks_exact(slots).enumerate() {
             let (mut a0, mut a1) = (zero, zero);
-            for (&mu, l) in mu_b.iter().zip(lengths.chunks_exact(LANES)) {
+            for &k in &used {
+                let (mu, l) = (mu_b[k], &lengths[k * LANES..(k + 1) * LANES]);
                 let m = _mm256_set1_pd(mu);
                 // SAFETY: `l` holds LANES = 8 values: two unaligned loads of four.
                 let (l0, l1) = unsafe {
@@ -376,7 +388,9 @@ mod tests {
         for (blk, block) in covered.chunks(LANES).enumerate() {
             for slot in 0..slots {
                 for k in 0..LANES {
-                    let v = if k < block.len() {
+                    // Some blocks cross no length of a material at all (the AVX2 loop skips it).
+                    let absent = (slot == 1 && blk % 2 == 0) || (slot == 2 && blk % 3 == 0);
+                    let v = if k < block.len() && !absent {
                         ((blk * 31 + slot * 7 + k * 13) % 97) as f64 * 3.1 / (1.0 + slot as f64)
                     } else {
                         0.0
