@@ -76,14 +76,35 @@ impl Digitiser {
         }
     }
 
-    /// The stored value of a pixel of signal `signal` and expected open-field signal `open`,
-    /// and whether its raw value `offset + gain · S` was clipped at the top.
-    #[inline(always)]
-    pub(crate) fn store(&self, signal: f64, open: f64) -> (u16, bool) {
-        self.store_raw(signal, self.offset + self.gain * signal, open)
+    /// The stored values of a row: `out[i]` for signal `signal[i]` and expected open-field
+    /// signal `open[i]` (the raw value `offset + gain · S` rounded and clipped, or the radiograph
+    /// value; [`RadiographValues::values_row`]); returns how many raw values were clipped at the
+    /// top (`round(offset + gain · S) > i_max`).
+    ///
+    /// # Panics
+    /// When the three slices differ in length.
+    pub(crate) fn store_row(&self, signal: &[f64], open: &[f64], out: &mut [u16]) -> usize {
+        assert!(
+            signal.len() == open.len() && signal.len() == out.len(),
+            "one S, S_open and value per pixel"
+        );
+        let saturated = signal
+            .iter()
+            .filter(|&&s| is_saturated(self.offset + self.gain * s, self.i_max))
+            .count();
+        match &self.table {
+            None => {
+                for (o, &s) in out.iter_mut().zip(signal) {
+                    *o = quantise(self.offset + self.gain * s, self.i_max);
+                }
+            }
+            Some(t) => t.values_row(signal, open, out),
+        }
+        saturated
     }
 
-    /// [`Digitiser::store`] with `noise_dn` DN of electronic noise: the raw value becomes
+    /// One pixel's stored value and whether its raw value was clipped, as
+    /// [`Digitiser::store_row`], with `noise_dn` DN of electronic noise: the raw value becomes
     /// `offset + gain · S + noise_dn`, the radiograph's signal `S + noise_dn / gain`.
     #[inline(always)]
     pub(crate) fn store_with_read_noise(
@@ -159,21 +180,22 @@ pub(crate) fn radiograph(
     quantise(f64::from(i_max) * t, i_max)
 }
 
-/// [`radiograph`]'s values, the same `u16` for every input, with one multiplication in place
-/// of the formula's division and rounding steps: a pixel whose value is far from a step of the
-/// stored value is decided at once, the others by [`radiograph`] itself.
+/// [`radiograph`]'s values, the same `u16` for every input, found for a block of pixels at once
+/// without a branch or a call per pixel: a pixel whose value is far from a step of the stored
+/// value is decided at once, the others by [`radiograph`] itself.
 ///
-/// With `L = libm::log(ratio)` (the formula's own logarithm, so the same bits) and
-/// `scale = i_max / range` (rounded once), it takes `g = L·scale + ½` and accepts `⌊g⌋` when
-/// `1 < ratio < exp(range)`, `⌊g⌋ < i_max` and `g` lies more than [`MARGIN`] from an integer.
-/// The formula's stored value is `⌊fl(i_max · fl(L/range)) + ½⌋` (rounded half up,
-/// [`quantise`]); with `V = i_max·L/range ≤ i_max < 2¹⁶` in real numbers, both `g` and the
-/// formula's `fl(v + ½)` differ from `V + ½` by at most `2⁻⁵⁰·V + 2·2⁻³⁷ < 10⁻¹⁰` (two
-/// relative roundings each on the product, one absolute rounding of the sum in `[0, 2¹⁶)`),
-/// so the two floors agree whenever `g` is farther than `2·10⁻¹⁰` from an integer, which the
-/// margin of 10⁻⁶ guarantees. `⌊g⌋ ≥ i_max` (the top, where the formula clamps) and the
-/// shortcuts of [`radiograph`] go to the formula. No assumption on any platform function:
-/// `libm` and IEEE arithmetic only. Test `fast_values_are_the_formula_s`.
+/// With `L̃` = [`ln_guess`]`(ratio)` (within [`LN_GUESS_ERROR`] of `libm::log`, the formula's own
+/// logarithm) and `scale = i_max / range` (rounded once), it takes `g = L̃·scale + ½` and accepts
+/// `⌊g⌋` when `1 < ratio < exp(range)`, `⌊g⌋ < i_max` and `g` lies farther than
+/// `margin = MARGIN + scale·LN_GUESS_ERROR` from an integer. The formula's stored value is
+/// `⌊fl(i_max · fl(L/range)) + ½⌋` (rounded half up, [`quantise`]); with `V = i_max·L/range <
+/// 2¹⁶` in real numbers, the formula's `fl(v + ½)` differs from `V + ½` by at most
+/// `2⁻⁵⁰·V + 2⁻³⁷ < 10⁻¹⁰`, and `g` by at most that plus `scale·|L̃ − L|`, so the two floors agree
+/// whenever `g` is farther than `2·10⁻¹⁰ + scale·LN_GUESS_ERROR` from an integer, which the
+/// margin guarantees ([`MARGIN`] = 10⁻⁶). `⌊g⌋ ≥ i_max` (the top, where the formula clamps)
+/// goes to the formula; the shortcuts of [`radiograph`] (`S ≤ 0` white, ratio ≤ 1 black,
+/// ratio ≥ exp(range) white) are taken as it takes them. Only IEEE arithmetic and `libm`: no
+/// platform function decides a value. Test `fast_values_are_the_formula_s`.
 #[derive(Debug, Clone)]
 pub(crate) struct RadiographValues {
     range: f64,
@@ -181,38 +203,115 @@ pub(crate) struct RadiographValues {
     i_max: u16,
     /// `i_max / range`.
     scale: f64,
+    /// `MARGIN + scale · LN_GUESS_ERROR`.
+    margin: f64,
 }
 
-/// Distance of `g` from an integer below which [`RadiographValues`] defers to the formula.
+/// Distance of `g` from an integer (beyond the logarithm's share) below which
+/// [`RadiographValues`] defers to the formula.
 const MARGIN: f64 = 1e-6;
+
+/// A bound of `|ln_guess(x) − libm::log(x)|` for every `x ≥ 1` (proof at [`ln_guess`]; measured
+/// by the test `ln_guess_is_within_its_bound`).
+const LN_GUESS_ERROR: f64 = 1e-12;
+
+/// `2⁵²`: adding and removing it rounds a double in `[0, 2⁵¹)` to an integer.
+const TWO_52: f64 = 4_503_599_627_370_496.0;
+
+/// `ln x` for a finite `x ≥ 1`, within [`LN_GUESS_ERROR`] of `libm::log(x)`, from IEEE
+/// arithmetic and bit operations only, without a branch (so a loop of it vectorizes).
+///
+/// `x = 2^e·m` with `m ∈ [√½, √2)`, `f = m − 1`, `s = f/(2 + f)` (`|s| ≤ 0.1716`,
+/// `z = s² ≤ 0.0295`), and `ln m = 2·atanh s = 2s·(1 + z/3 + z²/5 + … + z⁷/15)` (truncation
+/// `< 2|s|·z⁸/17·1/(1 − z) < 1.2·10⁻¹⁴`), `ln x = e·ln 2 + ln m`. Rounding: `ln 2` is off by
+/// `< 2⁻⁵⁴` (times `|e| ≤ 1024`: `< 6·10⁻¹⁴`), the polynomial part by a few ulp of `ln m`
+/// (`≤ 0.35`, so `< 10⁻¹⁵`), the final sum by half an ulp of `ln x ≤ 710` (`< 6·10⁻¹⁴`); and
+/// `libm::log` by under one ulp (`< 1.2·10⁻¹³`). Together `< 3·10⁻¹³`, a third of the bound.
+#[inline(always)]
+fn ln_guess(x: f64) -> f64 {
+    const SQRT_2: f64 = std::f64::consts::SQRT_2;
+    let bits = x.to_bits();
+    // The biased exponent as a double: the integer e_b in the low bits of 2⁵²'s mantissa.
+    let biased = f64::from_bits(0x4330_0000_0000_0000 | (bits >> 52)) - TWO_52;
+    let m = f64::from_bits((bits & 0x000F_FFFF_FFFF_FFFF) | 0x3FF0_0000_0000_0000);
+    let big = m > SQRT_2;
+    let m = if big { 0.5 * m } else { m };
+    let e = (biased - 1023.0) + if big { 1.0 } else { 0.0 };
+    let f = m - 1.0;
+    let s = f / (2.0 + f);
+    let z = s * s;
+    let p = z
+        * (1.0 / 3.0
+            + z * (1.0 / 5.0
+                + z * (1.0 / 7.0
+                    + z * (1.0 / 9.0 + z * (1.0 / 11.0 + z * (1.0 / 13.0 + z * (1.0 / 15.0)))))));
+    let two_s = 2.0 * s;
+    e * std::f64::consts::LN_2 + (two_s + two_s * p)
+}
 
 impl RadiographValues {
     /// For `range` (> 0, finite) and `i_max`; `exp_range` as for [`radiograph`].
     pub(crate) fn new(range: f64, exp_range: f64, i_max: u16) -> RadiographValues {
+        let scale = f64::from(i_max) / range;
         RadiographValues {
             range,
             exp_range,
             i_max,
-            scale: f64::from(i_max) / range,
+            scale,
+            margin: MARGIN + scale * LN_GUESS_ERROR,
         }
     }
 
     /// [`radiograph`]`(signal, open_signal, range, exp_range, i_max)`.
     #[inline]
     pub(crate) fn value(&self, signal: f64, open_signal: f64) -> u16 {
-        if signal > 0.0 {
-            let ratio = open_signal / signal;
-            if ratio > 1.0 && ratio < self.exp_range {
-                let g = libm::log(ratio) * self.scale + 0.5;
-                // g > 0.5 (L ≥ 0), so the conversion is the floor; it saturates far above i_max.
-                let k = g as u32;
-                let frac = g - f64::from(k);
-                if frac > MARGIN && frac < 1.0 - MARGIN && k < u32::from(self.i_max) {
-                    return k as u16;
-                }
+        let v = self.guess(signal, open_signal);
+        if v.is_nan() {
+            radiograph(signal, open_signal, self.range, self.exp_range, self.i_max)
+        } else {
+            v as u16
+        }
+    }
+
+    /// [`RadiographValues::value`] of every pixel: `out[i]` for `signal[i]`, `open[i]`.
+    pub(crate) fn values_row(&self, signal: &[f64], open: &[f64], out: &mut [u16]) {
+        const CHUNK: usize = 64;
+        let mut guess = [0.0; CHUNK];
+        for ((s, o), out) in signal
+            .chunks(CHUNK)
+            .zip(open.chunks(CHUNK))
+            .zip(out.chunks_mut(CHUNK))
+        {
+            let guess = &mut guess[..s.len()];
+            for ((g, &s), &o) in guess.iter_mut().zip(s).zip(o) {
+                *g = self.guess(s, o);
+            }
+            for (k, (&g, out)) in guess.iter().zip(out.iter_mut()).enumerate() {
+                *out = if g.is_nan() {
+                    radiograph(s[k], o[k], self.range, self.exp_range, self.i_max)
+                } else {
+                    g as u16
+                };
             }
         }
-        radiograph(signal, open_signal, self.range, self.exp_range, self.i_max)
+    }
+
+    /// The stored value as a double, or NaN where the formula must decide (module docs of the
+    /// type); branch-free.
+    #[inline(always)]
+    fn guess(&self, signal: f64, open_signal: f64) -> f64 {
+        let top = f64::from(self.i_max);
+        let ratio = open_signal / signal;
+        let g = ln_guess(ratio) * self.scale + 0.5;
+        // ⌊g⌋ for 0 ≤ g < 2⁵¹ (other lanes are overridden below).
+        let r = (g + TWO_52) - TWO_52;
+        let k = if r > g { r - 1.0 } else { r };
+        let frac = g - k;
+        let sure = (frac > self.margin) & (frac < 1.0 - self.margin) & (k < top);
+        let v = if sure { k } else { f64::NAN };
+        let v = if ratio >= self.exp_range { top } else { v };
+        let v = if ratio > 1.0 { v } else { 0.0 };
+        if signal > 0.0 { v } else { top }
     }
 }
 
@@ -232,6 +331,63 @@ mod tests {
         assert_eq!(quantise(65534.6, u16::MAX), u16::MAX);
         assert!(!is_saturated(100.49, 100));
         assert!(is_saturated(100.5, 100));
+    }
+
+    #[test]
+    fn ln_guess_is_within_its_bound() {
+        // Geometric sweep over [1, 2¹⁰²⁴), the binade edges and √2·2^e (where the reduction
+        // switches), and the first ulps above 1.
+        let mut worst = 0.0f64;
+        let mut check = |x: f64| {
+            if x.is_finite() && x >= 1.0 {
+                worst = worst.max((ln_guess(x) - libm::log(x)).abs());
+            }
+        };
+        for i in 0..2_000_000u64 {
+            check(libm::exp(709.7 * i as f64 / 2e6));
+        }
+        for e in 0..1024 {
+            let p = libm::ldexp(1.0, e);
+            for x in [p, p * std::f64::consts::SQRT_2] {
+                for ulps in -3i64..=3 {
+                    check(f64::from_bits((x.to_bits() as i64 + ulps) as u64));
+                }
+            }
+        }
+        for ulps in 0..1000u64 {
+            check(f64::from_bits(1.0f64.to_bits() + ulps));
+        }
+        assert!(worst < LN_GUESS_ERROR / 3.0, "worst {worst:e}");
+    }
+
+    #[test]
+    fn a_row_of_values_is_the_formula_s() {
+        let (range, i_max) = (7.0, u16::MAX);
+        let er = libm::exp(range);
+        let values = RadiographValues::new(range, er, i_max);
+        let n = 1000;
+        let open: Vec<f64> = (0..n).map(|i| 1e4 + i as f64).collect();
+        let mut signal: Vec<f64> = (0..n)
+            .map(|i| {
+                open[i] * libm::exp(-8.0 * (i as f64 / n as f64)) * (1.0 + 1e-3 * (i % 7) as f64)
+            })
+            .collect();
+        for (i, v) in [0.0, -1.0, f64::NAN, 1e30, open[7]].into_iter().enumerate() {
+            signal[100 * i + 3] = v;
+        }
+        let mut out = vec![0u16; n];
+        values.values_row(&signal, &open, &mut out);
+        for i in 0..n {
+            assert_eq!(
+                out[i],
+                radiograph(signal[i], open[i], range, er, i_max),
+                "pixel {i}"
+            );
+        }
+        // Every kind of value occurs: black, white and in between.
+        assert!(
+            out.contains(&0) && out.contains(&i_max) && out.iter().any(|&v| v > 0 && v < i_max)
+        );
     }
 
     #[test]

@@ -499,6 +499,8 @@ struct RenderScratch {
     energy_kev: Vec<f64>,
     /// The noisy signal `S` of a row.
     signal: Vec<f64>,
+    /// The expected open-field signal of a row.
+    open: Vec<f64>,
 }
 
 /// Renders one attenuation image: expected quanta, Poisson noise on every pixel, signal, then
@@ -536,12 +538,9 @@ pub fn render(beam: &Beam, det: &DetectorModel, scene: &Scene, key: &NoiseKey) -
             let mut rng = key.row_rng(j as u32);
             s.signal.resize(w, 0.0);
             digitiser.detect_row(&s.quanta, &s.energy_kev, &mut rng, &mut s.signal);
-            let mut saturated = 0usize;
-            for i in 0..w {
-                let (value, clipped) = digitiser.store(s.signal[i], fluence[i] * open);
-                saturated += usize::from(clipped);
-                row[i] = value;
-            }
+            s.open.clear();
+            s.open.extend(fluence.iter().map(|&f| f * open));
+            let saturated = digitiser.store_row(&s.signal, &s.open, row);
             (saturated, f_max)
         })
         .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));

@@ -163,13 +163,7 @@ fn store_row(
 ) -> usize {
     let mut saturated = 0usize;
     match unsharp.electronic_sd_dn() {
-        None => {
-            for (i, px) in row.iter_mut().enumerate() {
-                let (value, clipped) = digitiser.store(signal[i], open[i]);
-                saturated += usize::from(clipped);
-                *px = value;
-            }
-        }
+        None => saturated = digitiser.store_row(signal, open, row),
         Some(sd) => {
             let mut rng = electronic_key.row_rng(j as u32);
             for (i, px) in row.iter_mut().enumerate() {
