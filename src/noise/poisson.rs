@@ -233,6 +233,7 @@ impl Poisson {
     /// # Panics
     /// When the slices differ in length, or a mean is negative, NaN or infinite (as
     /// [`Poisson::new`]).
+    #[inline]
     pub fn fill_with_means(means: &[f64], rng: &mut impl Rng, out: &mut [f64]) {
         assert_eq!(means.len(), out.len(), "one sample per mean");
         const CHUNK: usize = 64;
