@@ -134,13 +134,18 @@ impl<'a> Projected<'a> {
             }
             None => {
                 let mut lengths = vec![0.0; width * height];
+                // An analytic solid's frame, computed once for the window.
+                let chords = self.object.chords_from(self.source_mm);
                 for j in rows.start.max(j0)..rows.end.min(j1) {
                     for i in columns.start.max(i0)..columns.end.min(i1) {
                         if wanted(i, j) {
                             let k =
                                 (j - rows.start) as usize * width + (i - columns.start) as usize;
                             let target = self.frame.pixel_centre_world(i, j);
-                            lengths[k] = traced_length_mm(self.object, self.source_mm, target);
+                            lengths[k] = match &chords {
+                                Some(c) => c.length_mm(target),
+                                None => traced_length_mm(self.object, self.source_mm, target),
+                            };
                         }
                     }
                 }
