@@ -367,6 +367,57 @@ mod tests {
     use super::*;
 
     #[test]
+    fn detect_row_is_one_sample_per_pixel_on_every_path() {
+        use rand_chacha::ChaCha8Rng;
+        use rand_core::SeedableRng;
+        // Means of every sampler and the sanitised ones, photon counting and integrating.
+        let q: Vec<f64> = (0..300)
+            .map(|i| match i % 9 {
+                0 => 0.0,
+                1 => -3.0,
+                2 => f64::NAN,
+                3 => 4.5,
+                _ => 10.0 + 53.7 * i as f64,
+            })
+            .collect();
+        let e: Vec<f64> = q.iter().map(|&q| 47.5 * q).collect();
+        for integrating in [false, true] {
+            let d = Digitiser {
+                integrating,
+                offset: 0.0,
+                gain: 1.0,
+                i_max: u16::MAX,
+                table: None,
+            };
+            let mut want_rng = ChaCha8Rng::seed_from_u64(9);
+            let want: Vec<f64> = q
+                .iter()
+                .zip(&e)
+                .map(|(&q, &e)| {
+                    let lambda = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
+                    let n = Poisson::sample_with_mean(lambda, &mut want_rng) as f64;
+                    match (integrating, q > 0.0) {
+                        (false, _) => n,
+                        (true, true) => n * (e / q),
+                        (true, false) => 0.0,
+                    }
+                })
+                .collect();
+            let (mut a, mut b) = (vec![0.0; q.len()], vec![0.0; q.len()]);
+            let (mut ra, mut rb) = (ChaCha8Rng::seed_from_u64(9), ChaCha8Rng::seed_from_u64(9));
+            d.detect_row(&q, &e, &mut ra, &mut a);
+            d.detect_row_portable(&q, &e, &mut rb, &mut b);
+            for i in 0..q.len() {
+                assert_eq!(a[i].to_bits(), want[i].to_bits(), "pixel {i}");
+                assert_eq!(b[i].to_bits(), want[i].to_bits(), "portable, pixel {i}");
+            }
+            let next = want_rng.next_u64();
+            assert_eq!(ra.next_u64(), next, "same generator position");
+            assert_eq!(rb.next_u64(), next, "same generator position, portable");
+        }
+    }
+
+    #[test]
     fn quantise_rounds_half_up_and_clips() {
         assert_eq!(quantise(0.49, 100), 0);
         assert_eq!(quantise(0.5, 100), 1);
