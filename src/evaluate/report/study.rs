@@ -254,11 +254,22 @@ pub fn html(s: &mut String, r: &StudyReport) {
     }
 }
 
-/// One small SVG: parameter `k` of `series` against days.
+/// Width and height of a per-patient plot, px.
+const PLOT_W: f64 = 180.0;
+const PLOT_H: f64 = 120.0;
+/// The plot area's margins, px: the value labels right-aligned in the left one, the title row
+/// above, the day label below.
+const PLOT_LEFT: f64 = 44.0;
+const PLOT_TOP: f64 = 22.0;
+const PLOT_RIGHT: f64 = 6.0;
+const PLOT_BOTTOM: f64 = 16.0;
+
+/// One small SVG: parameter `k` of `series` against days. The title has a row of its own and
+/// the value labels stand right-aligned left of the plot area, so neither touches the other or
+/// the data, whatever the numbers' length.
 fn plot(s: &mut String, series: &PatientSeries, k: usize) {
-    const W: f64 = 180.0;
-    const H: f64 = 120.0;
-    const PAD: f64 = 28.0;
+    const W: f64 = PLOT_W;
+    const H: f64 = PLOT_H;
     let (label, unit) = PARAMETERS[k];
     let days: Vec<f64> = series.points.iter().map(|p| f64::from(p.days)).collect();
     let values = series
@@ -269,8 +280,8 @@ fn plot(s: &mut String, series: &PatientSeries, k: usize) {
     let span = (hi - lo).max(1e-3);
     let (lo, hi) = (lo - 0.1 * span, hi + 0.1 * span);
     let d_max = days.iter().copied().fold(1.0, f64::max);
-    let x = |d: f64| PAD + (W - PAD - 6.0) * d / d_max;
-    let y = |v: f64| H - PAD + (PAD + 6.0 - H) * (v - lo) / (hi - lo);
+    let x = |d: f64| PLOT_LEFT + (W - PLOT_LEFT - PLOT_RIGHT) * d / d_max;
+    let y = |v: f64| PLOT_TOP + (H - PLOT_TOP - PLOT_BOTTOM) * (hi - v) / (hi - lo);
     let _ = write!(
         s,
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" role=\"img\" aria-label=\"{} {label} over time\">",
@@ -278,19 +289,20 @@ fn plot(s: &mut String, series: &PatientSeries, k: usize) {
     );
     let _ = write!(
         s,
-        "<text x=\"{PAD}\" y=\"12\" font-size=\"10\">{label} ({unit})</text><line x1=\"{PAD}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"#bbb\"/>",
+        "<text x=\"2\" y=\"12\" font-size=\"10\">{label} ({unit})</text><line x1=\"{PLOT_LEFT}\" y1=\"{:.1}\" x2=\"{:.1}\" y2=\"{:.1}\" stroke=\"#bbb\"/>",
         y(0.0),
-        W - 6.0,
+        W - PLOT_RIGHT,
         y(0.0)
     );
+    let label_x = PLOT_LEFT - 3.0;
     let _ = write!(
         s,
-        "<text x=\"2\" y=\"{:.1}\" font-size=\"8\">{}</text><text x=\"2\" y=\"{:.1}\" font-size=\"8\">{}</text><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"8\" text-anchor=\"end\">{} d</text>",
-        y(hi) + 8.0,
+        "<text x=\"{label_x}\" y=\"{:.1}\" font-size=\"8\" text-anchor=\"end\">{}</text><text x=\"{label_x}\" y=\"{:.1}\" font-size=\"8\" text-anchor=\"end\">{}</text><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"8\" text-anchor=\"end\">{} d</text>",
+        y(hi) + 3.0,
         format_number(hi),
-        y(lo),
+        y(lo) + 3.0,
         format_number(lo),
-        W - 6.0,
+        W - PLOT_RIGHT,
         H - 4.0,
         d_max
     );
@@ -318,4 +330,72 @@ fn plot(s: &mut String, series: &PatientSeries, k: usize) {
         }
     }
     s.push_str("</svg>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::evaluate::study::SeriesPoint;
+
+    /// The numbers of `attr="…"` in the order they appear after each `tag`.
+    fn attrs(svg: &str, tag: &str, attr: &str) -> Vec<f64> {
+        svg.split(tag)
+            .skip(1)
+            .filter_map(|rest| {
+                let start = rest.find(&format!(" {attr}=\""))? + attr.len() + 3;
+                rest[start..].split('"').next()?.parse().ok()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn labels_stand_clear_of_the_title_and_the_data() {
+        // Long value labels (negative, four significant digits) and points at both extremes.
+        let point = |exam: &str, days, v: f64| SeriesPoint {
+            exam: exam.into(),
+            days,
+            truth: [v; 7],
+            measured: Some([v * 1.3 - 0.0087; 7]),
+        };
+        let series = PatientSeries {
+            patient: "p01".into(),
+            segment: "component".into(),
+            points: vec![
+                point("postop", 0, 0.0),
+                point("3m", 90, -0.0088),
+                point("2y", 730, 0.0973),
+            ],
+        };
+        let mut svg = String::new();
+        plot(&mut svg, &series, 0);
+        // Value labels: right-aligned left of the plot area, below the title row.
+        let texts: Vec<&str> = svg.split("<text").skip(1).collect();
+        let (xs, ys) = (attrs(&svg, "<text", "x"), attrs(&svg, "<text", "y"));
+        assert_eq!(texts.len(), 4, "{svg}");
+        for k in 1..=2 {
+            assert!(texts[k].contains("text-anchor=\"end\""), "{}", texts[k]);
+            assert!(xs[k] < PLOT_LEFT, "value label at x {}", xs[k]);
+            // Font 8: a label's top is 8 px above its baseline; the title's baseline is 12.
+            assert!(
+                ys[k] - 8.0 >= 12.0 + 2.0,
+                "value label at y {} touches the title",
+                ys[k]
+            );
+        }
+        // Every point and the truth line lie inside the plot area.
+        let (cx, cy) = (attrs(&svg, "<circle", "cx"), attrs(&svg, "<circle", "cy"));
+        assert_eq!(cx.len(), 3);
+        for (&x, &y) in cx.iter().zip(&cy) {
+            assert!(
+                (PLOT_LEFT..=PLOT_W - PLOT_RIGHT).contains(&x),
+                "point x {x}"
+            );
+            assert!(
+                (PLOT_TOP..=PLOT_H - PLOT_BOTTOM).contains(&y),
+                "point y {y}"
+            );
+            // A point's radius (3 px) stays below the title row.
+            assert!(y - 3.0 > 12.0 + 2.0, "point at y {y} reaches the title");
+        }
+    }
 }
