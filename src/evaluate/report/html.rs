@@ -19,7 +19,7 @@ line-height:1.4;padding:0 1em}\
 h1{font-size:1.6em}h2{border-bottom:1px solid #999;margin-top:2em}\
 table{border-collapse:collapse;margin:0.6em 0 1em}th,td{border:1px solid #bbb;padding:0.25em 0.5em}\
 td{text-align:right;white-space:nowrap}table.facts th{text-align:left}table.facts td{text-align:left;white-space:normal}\
-table.facts code{word-break:break-all}\
+table.facts code{word-break:break-all}table.points th{overflow-wrap:anywhere;max-width:16em}\
 .gs{border-left:2px solid #444}td.pos{background:#ffbfbf}td.neg{background:#bfbfff}td.over{background:#ffd9a0}\
 .plots{display:flex;flex-wrap:wrap;gap:0.5em}figure{margin:0}figcaption{font-size:0.85em;text-align:center;max-width:330px}\
 .legend{font-size:0.9em}code{font-size:0.9em}\

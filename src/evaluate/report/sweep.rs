@@ -43,6 +43,46 @@ pub struct Summary<'a> {
     pub points: Vec<SummaryPoint<'a>>,
 }
 
+/// At most this many parameter columns stand in one table of the points: a sweep that varies
+/// more keys gets several tables, each repeating the point column, so every column fits a
+/// portrait page and a screen (values such as `[-482.963, 0.0, -129.41]` are wide).
+const POINT_COLUMNS: usize = 3;
+
+/// The points with their parameter values, [`POINT_COLUMNS`] parameters per table; the last
+/// table ends with the runs scored and excluded.
+fn points_tables(s: &mut String, summary: &Summary) {
+    let n = summary.parameters.len();
+    let parts = n.div_ceil(POINT_COLUMNS).max(1);
+    for part in 0..parts {
+        let columns = (part * POINT_COLUMNS).min(n)..((part + 1) * POINT_COLUMNS).min(n);
+        let last = part + 1 == parts;
+        s.push_str("<table class=\"points\"><thead><tr><th>Point</th>");
+        for p in &summary.parameters[columns.clone()] {
+            let _ = write!(s, "<th>{}</th>", esc(p));
+        }
+        if last {
+            s.push_str("<th>Runs scored</th><th>Excluded</th>");
+        }
+        s.push_str("</tr></thead><tbody>\n");
+        for p in &summary.points {
+            let _ = write!(s, "<tr><td>{}</td>", esc(&p.id));
+            for v in &p.values[columns.clone()] {
+                let _ = write!(s, "<td><code>{}</code></td>", esc(v));
+            }
+            if last {
+                let _ = write!(
+                    s,
+                    "<td>{}</td><td>{}</td>",
+                    p.report.runs_scored,
+                    p.report.excluded.len()
+                );
+            }
+            s.push_str("</tr>\n");
+        }
+        s.push_str("</tbody></table>\n");
+    }
+}
+
 /// The summary as CSV: columns `point`, one per parameter (named after it), then the columns of
 /// an evaluation's `report.csv` (table, group, parameter, unit, noise_level, n, trueness,
 /// precision, sd, tau, rms, significance, exposure_factor). One row per point and cell of its report, in point
@@ -84,24 +124,8 @@ pub fn summary_html(summary: &Summary) -> String {
     for (k, v) in &facts {
         let _ = writeln!(s, "<tr><th>{}</th><td>{}</td></tr>", esc(k), esc(v));
     }
-    s.push_str("</tbody></table>\n<h2>Points</h2>\n<table><thead><tr><th>Point</th>");
-    for p in &summary.parameters {
-        let _ = write!(s, "<th>{}</th>", esc(p));
-    }
-    s.push_str("<th>Runs scored</th><th>Excluded</th></tr></thead><tbody>\n");
-    for p in &summary.points {
-        let _ = write!(s, "<tr><td>{}</td>", esc(&p.id));
-        for v in &p.values {
-            let _ = write!(s, "<td><code>{}</code></td>", esc(v));
-        }
-        let _ = writeln!(
-            s,
-            "<td>{}</td><td>{}</td></tr>",
-            p.report.runs_scored,
-            p.report.excluded.len()
-        );
-    }
-    s.push_str("</tbody></table>\n");
+    s.push_str("</tbody></table>\n<h2>Points</h2>\n");
+    points_tables(&mut s, summary);
     let _ = writeln!(
         s,
         "<h2>Trueness ± precision against {}</h2>\n<p class=\"legend\">One plot per cell of the evaluation's tables: the points of the sweep left to right. {}</p>",
@@ -180,6 +204,59 @@ fn series_plots(s: &mut String, points: &[&SummaryPoint], x_axis: &svg::XAxis) {
                     .collect()
             };
             plot_figures(s, table, &xs, &labels, x_axis, *threshold, &cells_of);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixture::report;
+    use super::*;
+
+    #[test]
+    fn many_parameters_split_into_tables_that_each_name_their_points() {
+        let r = report();
+        for n in [0usize, 1, 3, 4, 8] {
+            let summary = Summary {
+                name: "s".into(),
+                facts: Vec::new(),
+                parameters: (0..n).map(|k| format!("key{k}")).collect(),
+                x_name: "key0".into(),
+                points: (0..2)
+                    .map(|p| SummaryPoint {
+                        id: format!("p{p:02}"),
+                        values: (0..n).map(|k| format!("v{p}{k}")).collect(),
+                        x: p as f64,
+                        x_label: p.to_string(),
+                        series: String::new(),
+                        report: &r,
+                    })
+                    .collect(),
+            };
+            let mut s = String::new();
+            points_tables(&mut s, &summary);
+            let tables: Vec<&str> = s.split("<table class=\"points\">").skip(1).collect();
+            assert_eq!(
+                tables.len(),
+                n.div_ceil(POINT_COLUMNS).max(1),
+                "{n} parameters"
+            );
+            for (t, table) in tables.iter().enumerate() {
+                // Every table names its points and holds at most POINT_COLUMNS parameters.
+                assert_eq!(table.matches("<th>Point</th>").count(), 1);
+                assert_eq!(table.matches("<td>p00</td>").count(), 1);
+                assert_eq!(table.matches("<td>p01</td>").count(), 1);
+                let keys = table.matches("<th>key").count();
+                assert!(keys <= POINT_COLUMNS, "{keys} columns");
+                assert_eq!(table.contains("Runs scored"), t + 1 == tables.len());
+            }
+            // Every parameter and every value stands once, in order.
+            for k in 0..n {
+                assert_eq!(s.matches(&format!("<th>key{k}</th>")).count(), 1);
+                for p in 0..2 {
+                    assert_eq!(s.matches(&format!("<code>v{p}{k}</code>")).count(), 1);
+                }
+            }
         }
     }
 }
