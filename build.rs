@@ -66,20 +66,30 @@ fn commit_and_dirty(dir: &Path) -> (String, String) {
     if commit.len() != 40 || !commit.bytes().all(|b| b.is_ascii_hexdigit()) {
         return unknown();
     }
-    // Rebuild when HEAD moves (a commit, a checkout) or the index changes (git add).
-    for (flag, file) in [
-        ("--git-path", "HEAD"),
-        ("--git-path", "index"),
-        ("--git-path", "packed-refs"),
-    ] {
-        if let Some(p) = git(dir, &["rev-parse", flag, file]) {
-            println!("cargo:rerun-if-changed={}", dir.join(p).display());
-        }
+    // Rebuild when HEAD moves (a commit, a checkout, a reset). Cargo treats a watched path that
+    // does not exist as changed on every build, so only paths that exist are watched: HEAD, the
+    // folder holding the branch's loose ref (a commit creates or rewrites the file in it, which
+    // changes the folder's newest modification time) and `packed-refs` where there is one. The
+    // index is not watched: `git status` refreshes it without changing what is committed, and a
+    // staged change is dirty as much as an unstaged one, which the watched sources already cover.
+    let mut watched = Vec::new();
+    if let Some(p) = git(dir, &["rev-parse", "--git-path", "HEAD"]) {
+        watched.push(dir.join(p));
+    }
+    if let Some(p) = git(dir, &["rev-parse", "--git-path", "packed-refs"]) {
+        watched.push(dir.join(p));
     }
     if let Some(head_ref) = git(dir, &["symbolic-ref", "-q", "HEAD"])
         && let Some(p) = git(dir, &["rev-parse", "--git-path", &head_ref])
     {
-        println!("cargo:rerun-if-changed={}", dir.join(p).display());
+        let loose = dir.join(p);
+        if let Some(folder) = loose.parent() {
+            watched.push(folder.to_path_buf());
+        }
+        watched.push(loose);
+    }
+    for path in watched.iter().filter(|p| p.exists()) {
+        println!("cargo:rerun-if-changed={}", path.display());
     }
     let mut args = vec!["status", "--porcelain", "--"];
     args.extend(BUILD_INPUTS);

@@ -264,8 +264,13 @@ pub enum Command {
     /// meshes (OBJ for XMALab, STL for Autoscoper). DEST must be a new folder; it is written
     /// completely or not at all, and never inside OUT.
     Export {
-        /// The output folder of a simulation (the ordinary layout, with truth.json in every run).
+        /// The output folder of a simulation (the ordinary layout, with truth.json in every run),
+        /// or the images folder of a blind layout together with --truth.
         out: PathBuf,
+        /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
+        /// is then its images folder. Both manifests and the binding between them are verified.
+        #[arg(long, value_name = "DIR")]
+        truth: Option<PathBuf>,
         /// The program to export for.
         #[arg(long, value_parser = ["xmalab", "autoscoper"])]
         to: String,

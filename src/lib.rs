@@ -5,6 +5,7 @@ pub mod diagnostic;
 pub mod evaluate;
 pub mod expand;
 pub mod geometry;
+pub mod input_file;
 pub mod interop;
 pub mod material;
 pub mod migration;

@@ -73,6 +73,7 @@ fn main() -> ExitCode {
         }
         Some(Command::Export {
             out,
+            truth,
             to,
             dir,
             runs,
@@ -80,6 +81,7 @@ fn main() -> ExitCode {
             calibration_from,
         }) => export(
             &out,
+            truth.as_deref(),
             &dir,
             &rsasim::interop::export::Options {
                 target: if to == "autoscoper" {
@@ -221,8 +223,20 @@ fn scene(
     Ok(())
 }
 
+/// Most errors printed in full; the rest are counted (a hostile file can hold millions).
+const MAX_ERRORS_SHOWN: usize = 20;
+
 fn report_errors(errors: &[Diagnostic]) -> u8 {
-    errors.iter().for_each(|e| eprintln!("{e}\n"));
+    errors
+        .iter()
+        .take(MAX_ERRORS_SHOWN)
+        .for_each(|e| eprintln!("{e}\n"));
+    if errors.len() > MAX_ERRORS_SHOWN {
+        eprintln!(
+            "rsasim: {} more error(s) not shown",
+            errors.len() - MAX_ERRORS_SHOWN
+        );
+    }
     eprintln!("rsasim: {} error(s); nothing was written", errors.len());
     2
 }
@@ -249,7 +263,16 @@ fn run_scenario(args: cli::RunArgs) -> Result<(), u8> {
         .shard
         .map(|request| resolve_shard(request, args.shard_count))
         .transpose()?;
-    let mut plan = prepare(&scenario, &args.allow.into())?;
+    let allow: simulate::Allowances = args.allow.into();
+    let mut plan = prepare(&scenario, &allow)?;
+    if let Some((spec, from)) = &shard {
+        rsasim::shard::check_count(spec.count, plan.runs.len(), allow.large).map_err(|why| {
+            eprintln!(
+                "error: --shard {spec} ({from}): {why}\n  = help: use fewer shards (--shard K/N with a smaller N)\n\nrsasim: 1 error(s); nothing was written"
+            );
+            2u8
+        })?;
+    }
     plan.previews = args.preview.is_some();
     match shard {
         None => run(&plan, args.out, args.truth_dir.as_deref(), args.force),
@@ -449,12 +472,13 @@ fn verify(out: &std::path::Path, images: Option<&std::path::Path>) -> Result<(),
 
 fn export(
     out: &std::path::Path,
+    truth: Option<&std::path::Path>,
     dir: &std::path::Path,
     options: &rsasim::interop::export::Options,
 ) -> Result<(), u8> {
     use rsasim::interop::export::{self, Error};
     let start = Instant::now();
-    let summary = export::export(out, dir, options).map_err(|e| match e {
+    let summary = export::export(out, truth, dir, options).map_err(|e| match e {
         Error::Input(errors) => report_errors(&errors),
         Error::Write(why) => {
             eprintln!(
@@ -641,14 +665,19 @@ fn evaluate_sweep(
     }
     let index = rsasim::sweep::read_index(dir).map_err(|e| report_errors(&e))?;
     let start = Instant::now();
-    let mut reports = Vec::with_capacity(index.points.len());
+    let mut point_dirs = Vec::with_capacity(index.points.len());
     for p in &index.points {
+        point_dirs
+            .push(rsasim::sweep::folder::point_folder(dir, p).map_err(|e| report_errors(&e))?);
+    }
+    let mut reports = Vec::with_capacity(index.points.len());
+    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
         eprintln!("rsasim evaluate: point {}", p.id);
-        reports.push(score(&dir.join(&p.id), None, options)?);
+        reports.push(score(point_dir, None, options)?);
     }
     let mut targets = Vec::with_capacity(reports.len());
-    for (p, r) in index.points.iter().zip(&reports) {
-        let point_dir = dir.join(&p.id).join(report::default_folder_name(r));
+    for (point_dir, r) in point_dirs.iter().zip(&reports) {
+        let point_dir = point_dir.join(report::default_folder_name(r));
         targets.push(report::claim_report_dir(&point_dir).map_err(|d| report_errors(&[*d]))?);
     }
     let summary_dir = report_dir.unwrap_or_else(|| dir.join(folder::REPORT_DIR));
@@ -689,10 +718,15 @@ fn reconstruct_any(
         return reconstruct(out, options);
     }
     let index = rsasim::sweep::read_index(out).map_err(|e| report_errors(&e))?;
-    let mut worst = Ok(());
+    let mut point_dirs = Vec::with_capacity(index.points.len());
     for p in &index.points {
+        point_dirs
+            .push(rsasim::sweep::folder::point_folder(out, p).map_err(|e| report_errors(&e))?);
+    }
+    let mut worst = Ok(());
+    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
         eprintln!("rsasim reconstruct: point {}", p.id);
-        if let Err(code) = reconstruct(&out.join(&p.id), options) {
+        if let Err(code) = reconstruct(point_dir, options) {
             worst = Err(worst.err().map_or(code, |w: u8| w.max(code)));
         }
     }
@@ -838,7 +872,16 @@ fn sweep_shard(
 ) -> Result<(), u8> {
     let start = Instant::now();
     let (task, from) = resolve_shard(request, shard_count)?;
-    let (sweep, folder) = open_sweep(file, out, allow, true)?;
+    let sweep = rsasim::sweep::prepare(file, allow).map_err(|e| report_errors(&e))?;
+    let most_runs = sweep.points.iter().map(|p| p.runs).max().unwrap_or(0);
+    rsasim::shard::check_count(task.count, most_runs, allow.large).map_err(|why| {
+        eprintln!(
+            "error: --shard {task} ({from}): {why}\n  = help: use fewer shards (--shard K/N with a smaller N)\n\nrsasim: 1 error(s); nothing was written"
+        );
+        2u8
+    })?;
+    let folder = rsasim::sweep::join(&sweep, out).map_err(|e| report_errors(&e))?;
+    write_points(&folder, &sweep, out)?;
     let counts: Vec<usize> = sweep.points.iter().map(|p| p.runs).collect();
     let shards = rsasim::sweep::split::point_shards(&counts, task);
     let total: usize = counts.iter().sum();
@@ -917,6 +960,24 @@ fn sweep_merge(
     let (sweep, folder) = open_sweep(file, out, allow, false)?;
     let points =
         rsasim::sweep::merge::check(&sweep, &folder, shard_count).map_err(|e| report_errors(&e))?;
+    // Every file of every point's shards hashed before any point is written, so that exit 2
+    // (a shard changed after its task wrote it) means nothing was written.
+    let mut changed = Vec::new();
+    for p in &points {
+        for shard_dir in p.shards.dirs() {
+            let v = rsasim::output::verify::verify_folder(shard_dir);
+            changed.extend(v.problems.into_iter().map(|f| {
+                rsasim::diagnostic::Diagnostic::file_error(
+                    &shard_dir.join(&f.path),
+                    format!("point {}: {}", p.id, f.problem),
+                )
+                .with_help("a shard must be exactly as rsasim wrote it: rerun that task of the sweep (a finished one writes nothing) and merge again")
+            }));
+        }
+    }
+    if !changed.is_empty() {
+        return Err(report_errors(&changed));
+    }
     let mut targets = Vec::with_capacity(points.len());
     for p in &points {
         for path in &p.shards.not_merged {
@@ -928,19 +989,43 @@ fn sweep_merge(
     if kept > 0 {
         eprintln!("rsasim sweep: {kept} point(s) complete from an earlier run or merge, kept");
     }
+    let mut merged: Vec<String> = Vec::new();
     for (p, target) in points.into_iter().zip(targets) {
         target.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
         let (count, runs) = (p.shards.count(), p.shards.runs());
-        let summary = merge::assemble(p.shards, target, false).map_err(|e| match e {
-            merge::Error::Input(errors) => report_errors(&errors),
-            merge::Error::Write(why) => {
-                eprintln!(
-                    "error: writing {} failed: {why}\n  = note: nothing was replaced; the points merged before it are complete",
-                    p.out.display()
-                );
-                1
+        let merged_before = if merged.is_empty() {
+            "no point was merged before it".to_string()
+        } else {
+            format!(
+                "the points merged before it are complete: {}",
+                merged.join(", ")
+            )
+        };
+        let summary = merge::assemble(p.shards, target, false).map_err(|e| {
+            let input = matches!(e, merge::Error::Input(_));
+            match e {
+                // A shard changed between the check and the merge: not "nothing was written"
+                // when earlier points were merged, so exit 1 and say which.
+                merge::Error::Input(errors) => {
+                    errors
+                        .iter()
+                        .take(MAX_ERRORS_SHOWN)
+                        .for_each(|e| eprintln!("{e}\n"));
+                    eprintln!(
+                        "error: point {} was not merged ({} error(s)); {merged_before}",
+                        p.id,
+                        errors.len()
+                    );
+                }
+                merge::Error::Write(why) => eprintln!(
+                    "error: writing {} failed: {why}\n  = note: point {} was not merged; {merged_before}",
+                    p.out.display(),
+                    p.id
+                ),
             }
+            if input && merged.is_empty() { 2 } else { 1 }
         })?;
+        merged.push(p.id.clone());
         summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
         eprintln!(
             "rsasim sweep: point {}: {count} shard(s), {runs} run(s), {} file(s) merged -> {}",

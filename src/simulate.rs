@@ -393,8 +393,51 @@ pub fn check_truth_dir(out_dir: &Path, truth_dir: &Path) -> Result<(), Vec<Diagn
             })
             .unwrap_or_else(|_| p.to_path_buf())
     };
+    // Where each path really leads, links followed as far as the path exists: a truth folder
+    // reaching into the images folder through a symbolic link is caught here, before anything
+    // runs, not at the final swap.
+    let real = |p: &Path| {
+        let mut path = absolute(p);
+        // A dangling link (a truth folder not yet written, linked into the images folder) leads
+        // where its target would be: followed by hand, at most 40 times, as the kernel would.
+        for _ in 0..40 {
+            let mut existing = path.clone();
+            let mut rest = Vec::new();
+            while std::fs::symlink_metadata(&existing).is_err() {
+                match (existing.file_name(), existing.parent()) {
+                    (Some(name), Some(parent)) => {
+                        rest.push(name.to_os_string());
+                        existing = parent.to_path_buf();
+                    }
+                    _ => break,
+                }
+            }
+            let resolved = match existing.canonicalize() {
+                Ok(c) => c,
+                Err(_) => match std::fs::read_link(&existing) {
+                    Ok(target) => {
+                        let base = existing.parent().map(Path::to_path_buf).unwrap_or_default();
+                        let mut next = absolute(&base.join(target));
+                        next.extend(rest.iter().rev());
+                        path = next;
+                        continue;
+                    }
+                    Err(_) => existing,
+                },
+            };
+            let mut real = resolved;
+            real.extend(rest.iter().rev());
+            return real;
+        }
+        path
+    };
     let (out, truth) = (absolute(out_dir), absolute(truth_dir));
-    if truth.starts_with(&out) || out.starts_with(&truth) {
+    let (out_real, truth_real) = (real(out_dir), real(truth_dir));
+    if truth.starts_with(&out)
+        || out.starts_with(&truth)
+        || truth_real.starts_with(&out_real)
+        || out_real.starts_with(&truth_real)
+    {
         return Err(vec![
             Diagnostic::file_error(
                 truth_dir,

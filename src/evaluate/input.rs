@@ -36,6 +36,7 @@ use glam::{DMat3, DVec3};
 
 use super::rotation::{CheckedRotation, checked_rotation, rotation_from_quaternion};
 use crate::diagnostic::{Diagnostic, KeyPath};
+use crate::output::received::{MAX_JSON_BYTES, ReceivedFolder};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
 
 /// One run's truth and where it came from.
@@ -147,28 +148,19 @@ pub fn load_truths_from(
     results_root: &Path,
 ) -> Result<Vec<TruthRun>, Vec<Diagnostic>> {
     let runs = truth_root.join("runs");
-    let entries = std::fs::read_dir(&runs).map_err(|e| {
-        vec![Diagnostic::file_error(&runs, format!("cannot list the run folders: {e}"))
-            .with_help("give the output folder of `rsasim SCENARIO.toml` (it holds manifest.json and runs/)")]
+    let folder = ReceivedFolder::unlisted(truth_root);
+    let names = folder.sub_folders("runs").map_err(|d| {
+        vec![d.with_help(
+            "give the output folder of `rsasim SCENARIO.toml` (it holds manifest.json and runs/)",
+        )]
     })?;
     let mut out_runs = Vec::new();
     let mut errors = Vec::new();
-    for entry in entries.flatten() {
-        let dir = entry.path();
-        if !dir.is_dir() {
-            continue;
-        }
-        let file = dir.join("truth.json");
-        let dir = results_root.join("runs").join(entry.file_name());
-        match std::fs::read(&file) {
-            Ok(bytes) => match serde_json::from_slice::<Truth>(&bytes) {
-                Ok(truth) => out_runs.push(TruthRun { dir, truth }),
-                Err(e) => errors.push(json_error(&file, &e)),
-            },
-            Err(e) => errors.push(Diagnostic::file_error(
-                &file,
-                format!("cannot read truth: {e}"),
-            )),
+    for name in names {
+        let dir = results_root.join("runs").join(&name);
+        match crate::output::truth::read_run_truth(&folder, &name) {
+            Ok(truth) => out_runs.push(TruthRun { dir, truth }),
+            Err(d) => errors.push(d),
         }
     }
     if !errors.is_empty() {
@@ -233,11 +225,16 @@ fn json_line_nth(text: &str, section: &str, value: &str, nth: usize) -> Option<(
     Some((line, col))
 }
 
+/// Reads a results file in a run folder through the gate for received folders: a regular file
+/// (not a link, not a FIFO) within the size cap.
+pub fn read_results(file: &Path) -> Result<Vec<u8>, Vec<Diagnostic>> {
+    crate::output::received::read_in_folder(file, MAX_JSON_BYTES).map_err(|d| vec![d])
+}
+
 /// Reads one run's `measured.json`, checking the run id, every entity id against `truth` (each
 /// at most once), every position (finite, within [`MAX_ABS_MM`]) and every rotation.
 pub fn load_measured_json(file: &Path, truth: &Truth) -> Result<RunMeasurement, Vec<Diagnostic>> {
-    let bytes = std::fs::read(file)
-        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+    let bytes = read_results(file)?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         vec![
             Diagnostic::file_error(file, format!("not UTF-8 text: {e}"))
@@ -259,6 +256,10 @@ pub fn check_measured(
     truth: &Truth,
 ) -> Result<RunMeasurement, Vec<Diagnostic>> {
     let mut errors = Vec::new();
+    // Locating an entity scans the text, so only the first MAX_ERRORS_PER_FILE errors are
+    // located and kept; the rest are counted (a file of 40,000 bad entries stays linear).
+    let made = std::cell::Cell::new(0usize);
+    let locate = || made.get() < MAX_ERRORS_PER_FILE;
     let err = |section: &str,
                index: Option<usize>,
                field: &str,
@@ -274,7 +275,10 @@ pub fn check_measured(
         }
         let mut d = Diagnostic::file_error(file, message).with_help(help);
         d.key_path = Some(path);
-        d.line_col = json_line(text, section, value);
+        if locate() {
+            d.line_col = json_line(text, section, value);
+        }
+        made.set(made.get() + 1);
         d
     };
     if m.format != MEASURED_FORMAT {
@@ -321,11 +325,19 @@ pub fn check_measured(
             m.phantoms.iter().map(|x| x.id.as_str()).collect(),
         ),
     ] {
+        // First index and count so far of every id: one pass, not a search per entity.
+        let mut seen: std::collections::HashMap<&str, (usize, usize)> =
+            std::collections::HashMap::with_capacity(ids.len());
         for (i, id) in ids.iter().enumerate() {
-            if let Some(first) = ids[..i].iter().position(|x| x == id) {
-                let nth = ids[..i].iter().filter(|x| *x == id).count();
+            let entry = seen.entry(id).or_insert((i, 0));
+            let (first, nth) = (entry.0, entry.1);
+            entry.1 += 1;
+            if nth > 0 {
+                let located = locate();
                 let line_of = |k: usize| {
-                    json_line_nth(text, section, id, k)
+                    located
+                        .then(|| json_line_nth(text, section, id, k))
+                        .flatten()
                         .map_or("an unknown line".to_string(), |(l, _)| format!("line {l}"))
                 };
                 let mut d = err(
@@ -341,18 +353,17 @@ pub fn check_measured(
                     ),
                     "give each entity once per run",
                 );
-                d.line_col = json_line_nth(text, section, id, nth);
+                if located {
+                    d.line_col = json_line_nth(text, section, id, nth);
+                }
                 errors.push(d);
             }
         }
     }
+    let source_ids: Vec<String> = truth.run.sources.iter().map(|x| x.id.clone()).collect();
+    let known_sources = KnownIds::new(&source_ids);
     for (i, s) in m.sources.iter().enumerate() {
-        match entity_position(
-            &s.id,
-            s.position_mm,
-            truth.run.sources.iter().map(|x| x.id.as_str()),
-            "source",
-        ) {
+        match entity_position(&s.id, s.position_mm, &known_sources, "source") {
             Ok(p) => {
                 out.sources.insert(s.id.clone(), p);
             }
@@ -364,12 +375,12 @@ pub fn check_measured(
     let detector_ids: Vec<String> = truth.run.detectors.iter().map(|x| x.id.clone()).collect();
     let phantom_ids: Vec<String> = truth.run.phantoms.iter().map(|x| x.id.clone()).collect();
     for (section, list, known) in [
-        ("detectors", &m.detectors, &detector_ids),
-        ("phantoms", &m.phantoms, &phantom_ids),
+        ("detectors", &m.detectors, KnownIds::new(&detector_ids)),
+        ("phantoms", &m.phantoms, KnownIds::new(&phantom_ids)),
     ] {
         for (i, e) in list.iter().enumerate() {
             let what = &section[..section.len() - 1];
-            let pos = entity_position(&e.id, e.position_mm, known.iter().map(String::as_str), what);
+            let pos = entity_position(&e.id, e.position_mm, &known, what);
             let rot = e.rotation.map(checked_rotation).transpose();
             let markers_ok = e.markers.iter().enumerate().try_for_each(|(k, b)| {
                 plausible_position(b.position_mm).map(drop).map_err(|msg| {
@@ -424,8 +435,27 @@ pub fn check_measured(
     if errors.is_empty() {
         Ok(out)
     } else {
-        Err(errors)
+        Err(summarised(file, errors))
     }
+}
+
+/// Most problems reported for one results file; the rest are counted.
+pub const MAX_ERRORS_PER_FILE: usize = 20;
+
+/// The first [`MAX_ERRORS_PER_FILE`] of `errors`, and one more saying how many were left out.
+fn summarised(file: &Path, mut errors: Vec<Diagnostic>) -> Vec<Diagnostic> {
+    if errors.len() > MAX_ERRORS_PER_FILE {
+        let more = errors.len() - MAX_ERRORS_PER_FILE;
+        errors.truncate(MAX_ERRORS_PER_FILE);
+        errors.push(
+            Diagnostic::file_error(
+                file,
+                format!("{more} more problem(s) of the same kinds in this file, not listed"),
+            )
+            .with_help("fix the ones above and run again"),
+        );
+    }
+    errors
 }
 
 type EntityError = (&'static str, String, String);
@@ -443,24 +473,55 @@ fn plausible_position(p: [f64; 3]) -> Result<DVec3, String> {
     Ok(DVec3::from_array(p))
 }
 
-fn entity_position<'a>(
+/// The ids of one kind of entity of a truth: looked up in a set (a results file may hold
+/// thousands of entries), and named in messages (the first [`SHOWN_IDS`], sorted).
+struct KnownIds<'a> {
+    set: std::collections::HashSet<&'a str>,
+    shown: String,
+}
+
+/// Most valid ids a message lists.
+const SHOWN_IDS: usize = 10;
+
+impl<'a> KnownIds<'a> {
+    fn new(ids: &'a [String]) -> Self {
+        Self::of(ids.iter().map(String::as_str))
+    }
+
+    fn of(ids: impl Iterator<Item = &'a str>) -> Self {
+        let set: std::collections::HashSet<&str> = ids.collect();
+        let mut sorted: Vec<&str> = set.iter().copied().collect();
+        sorted.sort_unstable();
+        let mut shown = sorted
+            .iter()
+            .take(SHOWN_IDS)
+            .map(|id| cut(id))
+            .collect::<Vec<_>>()
+            .join(", ");
+        if sorted.len() > SHOWN_IDS {
+            shown += &format!(" … and {} more", sorted.len() - SHOWN_IDS);
+        }
+        KnownIds { set, shown }
+    }
+}
+
+fn entity_position(
     id: &str,
     p: [f64; 3],
-    mut known: impl Iterator<Item = &'a str>,
+    known: &KnownIds<'_>,
     what: &str,
 ) -> Result<DVec3, EntityError> {
-    let known_list: Vec<&str> = known.by_ref().collect();
-    if !known_list.contains(&id) {
+    if !known.set.contains(id) {
         return Err((
             "id",
             format!("no {what} has the id `{}` in truth.json", cut(id)),
-            format!("valid {what} ids: {}", known_list.join(", ")),
+            format!("valid {what} ids: {}", known.shown),
         ));
     }
     plausible_position(p).map_err(|msg| {
         (
             "position_mm",
-            format!("{what} `{id}`: {msg}"),
+            format!("{what} `{}`: {msg}", cut(id)),
             format!("give three finite numbers in mm, box frame, within ±{MAX_ABS_MM:e} mm"),
         )
     })
@@ -472,10 +533,25 @@ pub fn load_measured_csv(
     file: &Path,
     truths: &[TruthRun],
 ) -> Result<BTreeMap<String, RunMeasurement>, Vec<Diagnostic>> {
+    let bytes = crate::input_file::read_named(file, crate::output::received::MAX_TABLE_BYTES)
+        .map_err(|d| vec![d])?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
-        .from_path(file)
-        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+        .from_reader(bytes.as_slice());
+    let known_by_run: std::collections::HashMap<&str, [KnownIds<'_>; 3]> = truths
+        .iter()
+        .map(|t| {
+            let run = &t.truth.run;
+            (
+                run.id.as_str(),
+                [
+                    KnownIds::of(run.sources.iter().map(|x| x.id.as_str())),
+                    KnownIds::of(run.detectors.iter().map(|x| x.id.as_str())),
+                    KnownIds::of(run.phantoms.iter().map(|x| x.id.as_str())),
+                ],
+            )
+        })
+        .collect();
     let headers = reader
         .headers()
         .map_err(|e| {
@@ -558,7 +634,7 @@ pub fn load_measured_csv(
             Ok(x)
         };
         let run_id = get("run").to_string();
-        let Some(truth) = truths.iter().find(|t| t.truth.run.id == run_id) else {
+        let Some(known_of_run) = known_by_run.get(run_id.as_str()) else {
             errors.push(at(
                 line,
                 "run",
@@ -591,11 +667,10 @@ pub fn load_measured_csv(
             software: software.clone(),
             ..Default::default()
         });
-        let run = &truth.truth.run;
-        let known: Vec<&str> = match kind.as_str() {
-            "source" => run.sources.iter().map(|x| x.id.as_str()).collect(),
-            "detector" => run.detectors.iter().map(|x| x.id.as_str()).collect(),
-            "phantom" => run.phantoms.iter().map(|x| x.id.as_str()).collect(),
+        let known = match kind.as_str() {
+            "source" => &known_of_run[0],
+            "detector" => &known_of_run[1],
+            "phantom" => &known_of_run[2],
             _ => {
                 errors.push(at(
                     line,
@@ -606,12 +681,16 @@ pub fn load_measured_csv(
                 continue;
             }
         };
-        if !known.contains(&id.as_str()) {
+        if !known.set.contains(id.as_str()) {
             errors.push(at(
                 line,
                 "id",
-                format!("no {kind} has the id `{}` in run {run_id}", cut(&id)),
-                &format!("valid {kind} ids: {}", known.join(", ")),
+                format!(
+                    "no {kind} has the id `{}` in run {}",
+                    cut(&id),
+                    cut(&run_id)
+                ),
+                &format!("valid {kind} ids: {}", known.shown),
             ));
             continue;
         }
@@ -639,7 +718,7 @@ pub fn load_measured_csv(
     if errors.is_empty() {
         Ok(out)
     } else {
-        Err(errors)
+        Err(summarised(file, errors))
     }
 }
 

@@ -14,7 +14,6 @@ pub mod rotation;
 pub mod stats;
 pub mod study;
 pub mod table;
-pub mod truth_check;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -82,7 +81,7 @@ pub fn evaluate(out: &Path, options: &Options) -> Result<Report, Vec<Diagnostic>
 /// [`evaluate`], with the truth read from `truth_dir` when given (the blind layout: `out` is the
 /// images folder holding the results, `truth_dir` its truth folder). The truth (every
 /// `truth.json` and `scenario.toml`) is verified against its manifest first, and in the blind
-/// layout the binding of both folders ([`truth_check::verify_truth`]): a modified or missing
+/// layout the binding of both folders ([`crate::output::truth_check::verify_truth`]): a modified or missing
 /// truth file is an error naming it.
 pub fn evaluate_with_truth(
     out: &Path,
@@ -94,7 +93,7 @@ pub fn evaluate_with_truth(
         output::check_output_folder(t)?;
     }
     let truth_root = truth_dir.unwrap_or(out);
-    truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
+    crate::output::truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
     let mut truths = load_truths_from(truth_root, out)?;
     check_same_entities(&truths)?;
     if let MeasuredSource::PerRunIn { dir, .. } = &options.measured {
@@ -193,7 +192,8 @@ pub fn evaluate_with_truth(
             rotation::REPAIR_TOLERANCE
         ));
     }
-    let manifest_sha256 = std::fs::read(truth_root.join("manifest.json"))
+    let manifest_sha256 = crate::output::received::ReceivedFolder::unlisted(truth_root)
+        .read("manifest.json", crate::output::received::MAX_MANIFEST_BYTES)
         .map(|b| {
             format!(
                 "{} (every truth.json and scenario.toml verified against it)",

@@ -78,12 +78,35 @@ impl PinholeCamera {
         // Rows of the world → camera rotation: the camera axes in world coordinates.
         let world_to_camera = DMat3::from_cols(r_axis, -c_axis, -s_axis).transpose();
         let t = -(world_to_camera * source_mm);
-        Ok(PinholeCamera {
+        let camera = PinholeCamera {
             size: [w, h],
             k: [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
             r: rotation_rows(&world_to_camera),
             t: t.to_array(),
-        })
+        };
+        camera.check_finite(&detector.id)?;
+        Ok(camera)
+    }
+
+    /// Every number of the camera finite, so no NaN or infinity reaches a camera file: a source
+    /// or detector far beyond any scene (1e308 mm), or a pixel pitch near zero, overflows.
+    fn check_finite(&self, detector: &str) -> Result<(), String> {
+        let numbers = self
+            .k
+            .iter()
+            .chain(self.r.iter())
+            .flatten()
+            .chain(self.t.iter());
+        if numbers.clone().all(|v| v.is_finite()) {
+            return Ok(());
+        }
+        Err(format!(
+            "the camera of detector `{}` is not finite (a source or detector position, or a pixel pitch, beyond what a scene can hold): {:?} {:?} {:?}",
+            crate::diagnostic::cut(detector),
+            self.k,
+            self.r,
+            self.t
+        ))
     }
 
     /// The 3×4 projection matrix K·[R | t].
@@ -142,6 +165,12 @@ impl PinholeCamera {
         let mut l = [0.0; 11];
         for (n, cell) in l.iter_mut().enumerate() {
             *cell = q[n / 4][n % 4] / l12;
+        }
+        if l.iter().any(|v| !v.is_finite()) {
+            return Err(
+                "the DLT-11 coefficients are not finite (the camera lies beyond what a scene can hold)"
+                    .into(),
+            );
         }
         Ok(l)
     }

@@ -27,9 +27,10 @@ use crate::expand::{DetectorState, Run};
 use crate::geometry::rotation_from_rows;
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};
+use crate::output::received::ReceivedFolder;
 use crate::output::tiff::{TiffCompression, TiffFacts, encode_tiff};
 use crate::output::{Measured, Truth};
-use crate::reconstruct::exam::{Setup, load_setup, read_image, run_folders};
+use crate::reconstruct::exam::{Setup, load_setup, read_image};
 
 /// The program the export is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,6 +93,12 @@ impl From<Vec<Diagnostic>> for Error {
     }
 }
 
+impl From<Diagnostic> for Error {
+    fn from(d: Diagnostic) -> Self {
+        Error::Input(vec![d])
+    }
+}
+
 /// One run, read and checked, ready to be written.
 struct RunExport {
     truth: Truth,
@@ -99,22 +106,81 @@ struct RunExport {
     cameras: Vec<(String, PinholeCamera)>,
 }
 
-/// Exports `out` into the new folder `dest` (see the module docs).
-pub fn export(out: &Path, dest: &Path, options: &Options) -> Result<Summary, Error> {
-    let setup = load_setup(out)?;
+/// Exports `out` into the new folder `dest` (see the module docs). With `truth_dir` (the blind
+/// layout) `out` is the images folder and `truth_dir` its truth folder, bound to it by the SHA-256
+/// of its manifest.
+///
+/// `out` (and `truth_dir`) are received folders: the truth (every `truth.json` and
+/// `scenario.toml`) is verified against the manifest before it is parsed, every id that becomes
+/// part of an exported path is a plain name, and each run folder is named after its run id, so
+/// nothing is written outside `dest` and no run replaces another.
+pub fn export(
+    out: &Path,
+    truth_dir: Option<&Path>,
+    dest: &Path,
+    options: &Options,
+) -> Result<Summary, Error> {
+    crate::output::check_output_folder(out)?;
+    if let Some(t) = truth_dir {
+        crate::output::check_output_folder(t)?;
+    }
+    let truth_root = truth_dir.unwrap_or(out);
+    let manifest = crate::output::truth_check::verify_truth(truth_root, truth_dir.map(|_| out))?;
+    let truth_folder = ReceivedFolder::listed(truth_root, &manifest);
+    let images_folder = match truth_dir {
+        None => truth_folder.clone(),
+        Some(_) => {
+            let (images_manifest, _) = crate::output::verify::read_manifest(out)
+                .map_err(|f| vec![Diagnostic::file_error(&out.join(&f.path), f.problem)])?;
+            ReceivedFolder::listed(out, &images_manifest)
+        }
+    };
+    let setup = load_setup(truth_root)?;
+    for name in &options.runs {
+        if let Some(why) = crate::output::received::name_problem(name) {
+            return Err(Error::Input(vec![
+                Diagnostic::file_error(
+                    &out.join("runs"),
+                    format!(
+                        "--runs {:?} is not a run id: {why}",
+                        crate::diagnostic::cut(name)
+                    ),
+                )
+                .with_help("give run ids as the folders of OUT/runs are named (e.g. n0-r00)"),
+            ]));
+        }
+    }
     let mut runs = Vec::new();
-    for (id, dir) in run_folders(out)? {
+    for id in truth_folder.sub_folders("runs")? {
         if !options.runs.is_empty() && !options.runs.contains(&id) {
             continue;
         }
-        let truth_file = dir.join("truth.json");
-        let truth: Truth = read_json(&truth_file, "schemas/truth.schema.json")?;
+        if !truth_folder.exists(&format!("runs/{id}/truth.json")) {
+            continue;
+        }
+        let truth = crate::output::truth::read_run_truth(&truth_folder, &id)?;
+        let dir = images_folder.sub_folder(&format!("runs/{id}"))?;
         let calibration = match &options.calibration_from {
             None => None,
-            Some(name) => Some(read_json::<Measured>(
-                &dir.join(name),
-                "schemas/measured.schema.json",
-            )?),
+            Some(name) => {
+                crate::output::received::check_name(
+                    Path::new("--calibration-from"),
+                    "--calibration-from",
+                    name,
+                )?;
+                let rel = format!("runs/{id}/{name}");
+                let file = images_folder.path(&rel);
+                let bytes = images_folder
+                    .read(&rel, crate::output::received::MAX_JSON_BYTES)
+                    .map_err(|d| {
+                        vec![d.with_help("give a results file every run folder holds, e.g. measured-rsasim-dlt-markers.json")]
+                    })?;
+                Some(parse_json::<Measured>(
+                    &file,
+                    &bytes,
+                    "schemas/measured.schema.json",
+                )?)
+            }
         };
         let cameras = cameras(&truth.run, calibration.as_ref(), &dir, options)?;
         runs.push(RunExport {
@@ -142,10 +208,13 @@ pub fn export(out: &Path, dest: &Path, options: &Options) -> Result<Summary, Err
             )
         };
         return Err(Error::Input(vec![
-            Diagnostic::file_error(&out.join("runs"), what).with_help(
-                "give run ids as the folders of OUT/runs are named (e.g. n0-r00); an export needs the truth, so give the ordinary (not blind) output folder",
+            Diagnostic::file_error(&truth_root.join("runs"), what).with_help(
+                "give run ids as the folders of OUT/runs are named (e.g. n0-r00); an export needs the truth: give the ordinary output folder, or a blind images folder with --truth TRUTH_DIR",
             ),
         ]));
+    }
+    if let Some(t) = truth_dir {
+        refuse_inside(t, dest)?;
     }
     refuse_inside(out, dest)?;
     let target =
@@ -218,17 +287,18 @@ fn refuse_inside(out: &Path, dest: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(file: &Path, schema: &str) -> Result<T, Error> {
-    let bytes = std::fs::read(file).map_err(|e| {
-        vec![
-            Diagnostic::file_error(file, format!("cannot read: {e}"))
-                .with_help("give an rsasim output folder (with truth) and a results file every run folder holds"),
-        ]
-    })?;
-    let text = String::from_utf8_lossy(&bytes);
+fn parse_json<T: serde::de::DeserializeOwned>(
+    file: &Path,
+    bytes: &[u8],
+    schema: &str,
+) -> Result<T, Error> {
+    let text = String::from_utf8_lossy(bytes);
     serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text)).map_err(|e| {
-        let mut d = Diagnostic::file_error(file, format!("invalid JSON: {e}"))
-            .with_help(format!("the file must follow {schema}"));
+        let mut d = Diagnostic::file_error(
+            file,
+            format!("invalid JSON: {}", crate::diagnostic::cut(&e.to_string())),
+        )
+        .with_help(format!("the file must follow {schema}"));
         if e.line() > 0 {
             d.line_col = Some((e.line(), e.column()));
         }

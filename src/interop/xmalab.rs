@@ -146,8 +146,9 @@ fn without_filter_suffix(name: &str) -> &str {
 /// Reads an XMALab export for one run: rigid-body transformations or 3-D points, told apart by
 /// the header. `truth` gives the run id and the phantoms (ids, beads) names are matched against.
 pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnostic>> {
-    let bytes = std::fs::read(file)
-        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+    let bytes =
+        crate::output::received::read_in_folder(file, crate::output::received::MAX_TABLE_BYTES)
+            .map_err(|d| vec![d])?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         vec![
             Diagnostic::file_error(file, format!("not UTF-8 text: {e}"))

@@ -97,7 +97,16 @@ pub fn write_once(path: &Path, bytes: &[u8]) -> std::io::Result<Once> {
         if !meta.is_file() || meta.len() != bytes.len() as u64 {
             return Ok(Once::Different);
         }
-        Ok(if std::fs::read(path)? == bytes {
+        // Opened without blocking or following a link: a FIFO put there cannot hang the task.
+        let Ok(file) = crate::input_file::open_regular(path, bytes.len() as u64, true) else {
+            return Ok(Once::Different);
+        };
+        let mut found = Vec::with_capacity(bytes.len());
+        std::io::Read::read_to_end(
+            &mut std::io::Read::take(file, bytes.len() as u64 + 1),
+            &mut found,
+        )?;
+        Ok(if found == bytes {
             Once::Identical
         } else {
             Once::Different

@@ -47,6 +47,11 @@ impl Shards {
         self.dirs.len()
     }
 
+    /// The shard folders as given, in shard order.
+    pub fn dirs(&self) -> &[PathBuf] {
+        &self.dirs
+    }
+
     /// The SHA-256 of the scenario the shards were written from.
     pub fn scenario_sha256(&self) -> Option<&str> {
         self.manifest.scenario_sha256.as_deref()
@@ -186,6 +191,20 @@ fn check_record(s: &Shard) -> Vec<Diagnostic> {
             "the manifest is not one rsasim wrote",
         )];
     };
+    // The count is the sender's: bounded before anything proportional to it is made. rsasim
+    // writes at most MAX_SHARDS shards, or one per run beyond it (with --allow-large).
+    if r.count > crate::shard::MAX_SHARDS.max(r.protocol_runs.len()) {
+        return vec![error(
+            &at,
+            format!(
+                "`shard.count` is {}: rsasim splits a protocol of {} run(s) into at most {} shards",
+                r.count,
+                r.protocol_runs.len(),
+                crate::shard::MAX_SHARDS.max(r.protocol_runs.len())
+            ),
+            "the manifest is not one rsasim wrote",
+        )];
+    }
     let expected: Vec<String> = runs_of_shard(r.protocol_runs.len(), spec)
         .into_iter()
         .map(|p| r.protocol_runs[p].clone())
@@ -293,18 +312,27 @@ pub fn check(dirs: &[PathBuf]) -> Result<Shards, Vec<Diagnostic>> {
             ));
         }
     }
-    let missing: Vec<usize> = (0..count).filter(|k| !by_index.contains_key(k)).collect();
-    if !missing.is_empty() {
+    // Counted, and only the first few named: the count is bounded, but the message need not be.
+    let missing_count = count - by_index.len().min(count);
+    let missing: Vec<usize> = (0..count)
+        .filter(|k| !by_index.contains_key(k))
+        .take(20)
+        .collect();
+    if missing_count > 0 {
         let protocol = &first.record.protocol_runs;
         let runs: Vec<String> = missing
             .iter()
             .flat_map(|&k| runs_of_shard(protocol.len(), ShardSpec { index: k, count }))
+            .take(51)
             .map(|p| protocol[p].clone())
             .collect();
-        let shards_text = missing
+        let mut shards_text = missing
             .iter()
             .map(|k| format!("{k}/{count}"))
             .collect::<Vec<_>>();
+        if missing_count > shards_text.len() {
+            shards_text.push(format!("and {} more", missing_count - shards_text.len()));
+        }
         // Named after the folder that holds the shards (OUT of `--shard`), when there is one.
         let holder = first
             .dir
@@ -315,7 +343,7 @@ pub fn check(dirs: &[PathBuf]) -> Result<Shards, Vec<Diagnostic>> {
             holder,
             format!(
                 "{} of {count} shard(s) missing ({}): run(s) {} are in no folder given",
-                missing.len(),
+                missing_count,
                 listed(&shards_text, 20),
                 listed(&runs, 50)
             ),

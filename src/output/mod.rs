@@ -13,9 +13,11 @@ pub mod measured;
 pub mod merge;
 pub mod migration_measured;
 pub mod preview;
+pub mod received;
 pub mod study;
 pub mod tiff;
 pub mod truth;
+pub mod truth_check;
 pub mod verify;
 
 pub use manifest::{

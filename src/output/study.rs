@@ -31,6 +31,7 @@ use sha2::{Digest, Sha256};
 use crate::diagnostic::Diagnostic;
 use crate::expand::study;
 use crate::geometry::{Pose, euler_xyz_deg};
+use crate::output::received::{MAX_JSON_BYTES, ReceivedFolder, check_name};
 use crate::output::verify::{check_manifest, read_manifest};
 use crate::scenario::{Scenario, StudyDesign, hex};
 
@@ -48,11 +49,23 @@ pub const STUDY_FILE: &str = "study.json";
 /// exams or patients, so it is refused, as is a folder whose manifest is missing or modified.
 pub fn read_study(dir: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
     let file = dir.join(STUDY_FILE);
-    if !file.exists() {
+    let folder = ReceivedFolder::unlisted(dir);
+    if !folder.exists(STUDY_FILE) {
+        // A folder whose manifest lists a study.json is a study, with or without the file.
+        if let Ok((listing, _)) = read_manifest(dir)
+            && listing.files.iter().any(|f| f.path == STUDY_FILE)
+        {
+            return Err(vec![Diagnostic::file_error(
+                &file,
+                "is missing, but manifest.json lists it: this folder holds a clinical study",
+            )
+            .with_help("restore study.json (or ask the sender for the folder as rsasim wrote it); `rsasim verify` lists every missing file")]);
+        }
         return Ok(None);
     }
-    let bytes = std::fs::read(&file)
-        .map_err(|e| vec![Diagnostic::file_error(&file, format!("cannot read: {e}"))])?;
+    let bytes = folder
+        .read(STUDY_FILE, MAX_JSON_BYTES)
+        .map_err(|d| vec![d])?;
     check_listed(dir, &bytes).map_err(|e| {
         vec![Diagnostic::file_error(&file, e).with_help(
             "study.json must be the file the simulator wrote into this folder: restore it, or re-run the scenario",
@@ -60,14 +73,133 @@ pub fn read_study(dir: &Path) -> Result<Option<Study>, Vec<Diagnostic>> {
     })?;
     let text = String::from_utf8(bytes)
         .map_err(|e| vec![Diagnostic::file_error(&file, format!("not UTF-8: {e}"))])?;
-    serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
-        .map(Some)
+    let study: Study = serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
         .map_err(|e| {
             vec![
-                Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
-                    .with_help("study.json is written by the simulator: re-run the scenario"),
+                Diagnostic::file_error(
+                    &file,
+                    format!(
+                        "line {}: {}",
+                        e.line(),
+                        crate::diagnostic::cut(&e.to_string())
+                    ),
+                )
+                .with_help("study.json is written by the simulator: re-run the scenario"),
             ]
-        })
+        })?;
+    let runs = folder.sub_folders("runs").map_err(|d| vec![d])?;
+    check_study(&file, &study, &runs).map_err(|d| vec![d])?;
+    Ok(Some(study))
+}
+
+/// Checks what a sender could have forged in a study file before anything relies on it: the
+/// format; segment, exam and patient ids plain names, each once; every exam a patient lists, and
+/// every exam and segment a migration or loose marker names, in the design; every run id a plain
+/// name, one of the folder's `runs` and used by one patient's exam only (so the patients are at
+/// most as many as the runs, and no run is scored twice).
+pub fn check_study(file: &Path, study: &Study, runs: &[String]) -> Result<(), Diagnostic> {
+    use crate::diagnostic::cut;
+    use std::collections::{HashMap, HashSet};
+    let bad = |message: String| {
+        Diagnostic::file_error(file, message)
+            .with_help("study.json is written by the simulator with the runs of its folder: ask the sender for the folder as rsasim wrote it")
+    };
+    if study.format != STUDY_FORMAT {
+        return Err(bad(format!(
+            "`format` is {:?}; this rsasim reads {STUDY_FORMAT:?}",
+            cut(&study.format)
+        )));
+    }
+    let unique = |field: &str, ids: Vec<&str>| -> Result<HashSet<String>, Diagnostic> {
+        let mut seen = HashSet::with_capacity(ids.len());
+        for id in ids {
+            check_name(file, field, id)?;
+            if !seen.insert(id.to_string()) {
+                return Err(bad(format!("`{field}` {:?} appears twice", cut(id))));
+            }
+        }
+        Ok(seen)
+    };
+    let segments = unique(
+        "segments[].id",
+        study.segments.iter().map(|s| s.id.as_str()).collect(),
+    )?;
+    let exams = unique(
+        "exams[].id",
+        study.exams.iter().map(|e| e.id.as_str()).collect(),
+    )?;
+    unique(
+        "patients[].id",
+        study.patients.iter().map(|p| p.id.as_str()).collect(),
+    )?;
+    for exam in &study.exams {
+        if let Some(of) = &exam.double_of
+            && !exams.contains(of)
+        {
+            return Err(bad(format!(
+                "exam {:?}: `double_of` names {:?}, which is not an exam of the study",
+                cut(&exam.id),
+                cut(of)
+            )));
+        }
+    }
+    let known_runs: HashSet<&str> = runs.iter().map(String::as_str).collect();
+    let mut used: HashMap<&str, (&str, &str)> = HashMap::new();
+    for p in &study.patients {
+        if p.runs.is_empty() {
+            return Err(bad(format!("patient {:?}: `runs` is empty", cut(&p.id))));
+        }
+        for (exam, run) in &p.runs {
+            if !exams.contains(exam) {
+                return Err(bad(format!(
+                    "patient {:?}: `runs` names the exam {:?}, which is not an exam of the study",
+                    cut(&p.id),
+                    cut(exam)
+                )));
+            }
+            check_name(file, "patients[].runs", run)?;
+            if !known_runs.contains(run.as_str()) {
+                return Err(bad(format!(
+                    "patient {:?}, exam {:?}: `runs` names the run {:?}, which has no folder under runs/",
+                    cut(&p.id),
+                    cut(exam),
+                    cut(run)
+                )));
+            }
+            if let Some((other, other_exam)) =
+                used.insert(run.as_str(), (p.id.as_str(), exam.as_str()))
+            {
+                return Err(bad(format!(
+                    "the run {:?} is given to patient {:?} exam {:?} and to patient {:?} exam {:?}: every run is one exam of one patient",
+                    cut(run),
+                    cut(other),
+                    cut(other_exam),
+                    cut(&p.id),
+                    cut(exam)
+                )));
+            }
+        }
+        let named = p
+            .migration
+            .iter()
+            .map(|m| (&m.exam, &m.segment, "migration"))
+            .chain(
+                p.loose_markers
+                    .iter()
+                    .map(|m| (&m.exam, &m.segment, "loose_markers")),
+            );
+        for (exam, segment, field) in named {
+            if !exams.contains(exam) || !segments.contains(segment) {
+                return Err(bad(format!(
+                    "patient {:?}: `{field}` names exam {:?} and segment {:?}, not both of the study",
+                    cut(&p.id),
+                    cut(exam),
+                    cut(segment)
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Checks `bytes` (the content of `dir`'s [`STUDY_FILE`]) against the SHA-256 that

@@ -80,3 +80,219 @@ pub struct ProjectedMarker {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub metal_fraction: Option<f64>,
 }
+
+/// Reads `runs/<run>/truth.json` of a received folder through the gate (a regular file within the
+/// size cap, matching the manifest's hash where the manifest lists it) and checks what a sender
+/// could have forged before anything uses it: the format tag, the run id equal to its folder's
+/// name, and every id that names a file or folder (sources, detectors, phantoms, exposures and
+/// the images' exposure and detector) a plain name, each at most once.
+pub fn read_run_truth(
+    folder: &super::received::ReceivedFolder,
+    run: &str,
+) -> Result<Truth, crate::diagnostic::Diagnostic> {
+    use crate::diagnostic::Diagnostic;
+    let rel = format!("runs/{run}/truth.json");
+    let file = folder.path(&rel);
+    let bytes = folder.read(&rel, super::received::MAX_JSON_BYTES)?;
+    let text = String::from_utf8_lossy(&bytes);
+    let truth: Truth = serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text))
+        .map_err(|e| {
+            let mut d = Diagnostic::file_error(
+                &file,
+                format!("invalid JSON: {}", crate::diagnostic::cut(&e.to_string())),
+            )
+            .with_help("the file must follow schemas/truth.schema.json");
+            if e.line() > 0 {
+                d.line_col = Some((e.line(), e.column()));
+            }
+            d
+        })?;
+    check_truth_names(&file, run, &truth)?;
+    Ok(truth)
+}
+
+/// The checks of [`read_run_truth`] on a parsed truth.
+pub fn check_truth_names(
+    file: &std::path::Path,
+    run: &str,
+    truth: &Truth,
+) -> Result<(), crate::diagnostic::Diagnostic> {
+    use super::received::check_name;
+    use crate::diagnostic::{Diagnostic, cut};
+    if truth.format != TRUTH_FORMAT {
+        return Err(Diagnostic::file_error(
+            file,
+            format!(
+                "`format` is {:?}; this rsasim reads {TRUTH_FORMAT:?}",
+                cut(&truth.format)
+            ),
+        ));
+    }
+    check_name(file, "id", &truth.run.id)?;
+    if truth.run.id != run {
+        return Err(Diagnostic::file_error(
+            file,
+            format!(
+                "`id` is {:?}, but the file lies in the run folder `{run}`",
+                cut(&truth.run.id)
+            ),
+        )
+        .with_help(
+            "rsasim names every run folder after its run id: this truth was moved or edited",
+        ));
+    }
+    let groups: [(&str, Vec<&str>); 4] = [
+        (
+            "sources[].id",
+            truth.run.sources.iter().map(|s| s.id.as_str()).collect(),
+        ),
+        (
+            "detectors[].id",
+            truth.run.detectors.iter().map(|d| d.id.as_str()).collect(),
+        ),
+        (
+            "phantoms[].id",
+            truth.run.phantoms.iter().map(|p| p.id.as_str()).collect(),
+        ),
+        (
+            "exposures[].id",
+            truth.run.exposures.iter().map(|e| e.id.as_str()).collect(),
+        ),
+    ];
+    for (field, ids) in &groups {
+        let mut seen = std::collections::HashSet::with_capacity(ids.len());
+        for id in ids {
+            check_name(file, field, id)?;
+            if !seen.insert(*id) {
+                return Err(Diagnostic::file_error(
+                    file,
+                    format!("`{field}` {:?} appears twice", cut(id)),
+                )
+                .with_help("ids are unique within a run"));
+            }
+        }
+    }
+    check_truth_magnitudes(file, truth)?;
+    let mut images = std::collections::HashSet::with_capacity(truth.images.len());
+    for image in &truth.images {
+        check_name(file, "images[].exposure", &image.exposure)?;
+        check_name(file, "images[].detector", &image.detector)?;
+        if !images.insert((image.exposure.as_str(), image.detector.as_str())) {
+            return Err(Diagnostic::file_error(
+                file,
+                format!(
+                    "`images[]` lists exposure {:?} with detector {:?} twice",
+                    cut(&image.exposure),
+                    cut(&image.detector)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The numbers of a truth that later stages divide by, shift by or project with, checked for
+/// physical sense: positions finite and within ±[`crate::scenario::MAX_ABS`] mm,
+/// rotations finite, detectors with 1 to 65,535 pixels a side, a pitch of at least
+/// [`crate::scenario::MIN_PIXEL_PITCH_MM`] and 1 to 16 bits, every detector's source
+/// one of the run's. A truth rsasim wrote always passes; a forged one is refused here, so no NaN
+/// or infinity reaches an exported file.
+fn check_truth_magnitudes(
+    file: &std::path::Path,
+    truth: &Truth,
+) -> Result<(), crate::diagnostic::Diagnostic> {
+    use crate::diagnostic::{Diagnostic, cut};
+    use crate::scenario::MAX_ABS;
+    use crate::scenario::MIN_PIXEL_PITCH_MM;
+    let bad = |field: String, what: String| {
+        Diagnostic::file_error(file, format!("`{field}` {what}"))
+            .with_help("a truth rsasim wrote holds finite positions within ±1e6 mm, detectors of 1–65535 pixels a side, a pitch of at least 0.001 mm and 1–16 bits: this one was not written by rsasim as it is")
+    };
+    let position = |field: String, p: glam::DVec3| {
+        if p.to_array()
+            .iter()
+            .all(|x| x.is_finite() && x.abs() <= MAX_ABS)
+        {
+            Ok(())
+        } else {
+            Err(bad(
+                field,
+                format!(
+                    "is {:?} mm, not finite within ±{MAX_ABS:e} mm",
+                    p.to_array()
+                ),
+            ))
+        }
+    };
+    let rotation = |field: String, r: glam::DMat3| {
+        if r.to_cols_array()
+            .iter()
+            .all(|x| x.is_finite() && x.abs() <= 2.0)
+        {
+            Ok(())
+        } else {
+            Err(bad(
+                field,
+                "is not a rotation (entries finite, within ±1)".into(),
+            ))
+        }
+    };
+    let run = &truth.run;
+    for s in &run.sources {
+        position(
+            format!("sources[{}].position_mm", cut(&s.id)),
+            s.position_mm,
+        )?;
+    }
+    for d in &run.detectors {
+        let id = cut(&d.id);
+        position(format!("detectors[{id}].position_mm"), d.position_mm)?;
+        rotation(format!("detectors[{id}].rotation"), d.rotation)?;
+        if d.pixels.iter().any(|&n| n == 0 || n > 65_535) {
+            return Err(bad(
+                format!("detectors[{id}].pixels"),
+                format!("is {:?}, not 1–65535 a side", d.pixels),
+            ));
+        }
+        if !d
+            .pixel_pitch_mm
+            .iter()
+            .all(|&x| x.is_finite() && (MIN_PIXEL_PITCH_MM..=MAX_ABS).contains(&x))
+        {
+            return Err(bad(
+                format!("detectors[{id}].pixel_pitch_mm"),
+                format!(
+                    "is {:?}, not {MIN_PIXEL_PITCH_MM}–{MAX_ABS:e} mm",
+                    d.pixel_pitch_mm
+                ),
+            ));
+        }
+        if !(1..=16).contains(&d.bpp) {
+            return Err(bad(
+                format!("detectors[{id}].bpp"),
+                format!("is {}, not 1–16", d.bpp),
+            ));
+        }
+        if !run.sources.iter().any(|s| s.id == d.source) {
+            return Err(bad(
+                format!("detectors[{id}].source"),
+                format!(
+                    "names {:?}, which is not a source of the run",
+                    cut(&d.source)
+                ),
+            ));
+        }
+    }
+    for p in &run.phantoms {
+        let id = cut(&p.id);
+        position(format!("phantoms[{id}].position_mm"), p.position_mm)?;
+        rotation(format!("phantoms[{id}].rotation"), p.rotation)?;
+        for m in &p.markers {
+            position(
+                format!("phantoms[{id}].markers[{}].position_mm", cut(&m.id)),
+                m.position_mm,
+            )?;
+        }
+    }
+    Ok(())
+}

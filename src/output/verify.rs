@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::manifest::{self, Layout, MANIFEST_FORMAT, Manifest, ManifestFile, OUTPUT_FORMAT};
+use super::received::{MAX_MANIFEST_BYTES, ReceivedFolder};
 use crate::scenario::hex;
 
 /// One thing wrong with a folder: the file (relative to the folder, `/` separators) and what.
@@ -67,9 +68,9 @@ impl Verification {
 
 /// Reads and parses `dir/manifest.json`, returning it with its bytes.
 pub fn read_manifest(dir: &Path) -> Result<(Manifest, Vec<u8>), Finding> {
-    let file = dir.join("manifest.json");
-    let bytes = std::fs::read(&file)
-        .map_err(|e| Finding::new("manifest.json", format!("cannot read: {e}")))?;
+    let bytes = ReceivedFolder::unlisted(dir)
+        .read("manifest.json", MAX_MANIFEST_BYTES)
+        .map_err(|d| Finding::new("manifest.json", d.message))?;
     let manifest: Manifest = serde_json::from_slice(&bytes).map_err(|e| {
         Finding::new(
             "manifest.json",
@@ -129,7 +130,11 @@ fn relative(path: &str) -> Option<PathBuf> {
 
 /// SHA-256 (lowercase hex) and length of a file, read 64 KiB at a time.
 pub fn sha256_file(path: &Path) -> std::io::Result<(String, u64)> {
-    let mut file = std::fs::File::open(path)?;
+    sha256_reader(std::fs::File::open(path)?)
+}
+
+/// SHA-256 (lowercase hex) and length of everything `file` yields, read 64 KiB at a time.
+fn sha256_reader(mut file: impl Read) -> std::io::Result<(String, u64)> {
     let mut hasher = Sha256::new();
     let mut buf = vec![0u8; 64 * 1024];
     let mut total = 0u64;
@@ -155,30 +160,38 @@ fn check_entry(root: &Path, entry: &ManifestFile, content: bool) -> Option<Findi
     let Some(rel) = relative(&entry.path) else {
         return bad("the manifest lists a path outside the folder".into());
     };
-    let path = root.join(rel);
-    let meta = match std::fs::symlink_metadata(&path) {
-        Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return bad("missing".into()),
-        Err(e) => return bad(format!("cannot read: {e}")),
+    let Some(rel) = rel.to_str() else {
+        return bad("the manifest lists a path that is not UTF-8".into());
     };
-    if !meta.file_type().is_file() {
-        return bad("not a regular file (a folder, link or device)".into());
+    let folder = ReceivedFolder::unlisted(root);
+    if !folder.exists(rel) {
+        return bad("missing".into());
     }
-    if meta.len() != entry.bytes {
+    // Opened through the gate: no link anywhere below the folder, a regular file, no blocking.
+    let file = match folder.open(rel, u64::MAX) {
+        Ok(f) => f,
+        Err(d) => {
+            return bad(format!(
+                "not a regular file inside the folder: {}",
+                d.message
+            ));
+        }
+    };
+    let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
+    if len != entry.bytes {
         return bad(format!(
-            "size {} bytes, the manifest says {} (truncated or extended)",
-            meta.len(),
+            "size {len} bytes, the manifest says {} (truncated or extended)",
             entry.bytes
         ));
     }
     if !content {
         return None;
     }
-    match sha256_file(&path) {
+    match sha256_reader(file) {
         Err(e) => bad(format!("cannot read: {e}")),
         Ok((sha, _)) if sha != entry.sha256 => bad(format!(
             "content differs from the manifest (SHA-256 {sha}, the manifest says {})",
-            entry.sha256
+            crate::diagnostic::cut(&entry.sha256)
         )),
         Ok(_) => None,
     }

@@ -3,7 +3,7 @@
 //! inside a folder allowed explicitly (`--allow-dir`), after `..`, percent-encoding (decoded by
 //! the caller) and symbolic links are resolved: the path is canonicalised and its canonical form
 //! must start with one of the canonical allowed roots. Devices, FIFOs, sockets, folders and
-//! anything under `/proc`, `/sys` or `/dev` are refused before they are opened; the file is then
+//! anything under `/proc`, `/sys` or `/dev` (but `/dev/shm`, a tmpfs for data) are refused before they are opened; the file is then
 //! opened without following a last symbolic link and without blocking, and the opened file is
 //! checked again (same file, still regular, still within the size limit) before it is read.
 //!
@@ -21,6 +21,16 @@ pub const MAX_SHOWN_CHARS: usize = 120;
 
 /// System folders whose "files" are not data, refused whatever the allowed roots are.
 const SYSTEM_ROOTS: [&str; 3] = ["/proc", "/sys", "/dev"];
+
+/// Folders under the system folders that hold ordinary files: `/dev/shm` is a tmpfs, a usual
+/// scratch place for data (its devices, if any, are refused as not regular files all the same).
+const DATA_UNDER_SYSTEM: [&str; 1] = ["/dev/shm"];
+
+/// Whether `canonical` lies in a system folder whose files are not data.
+fn is_system(canonical: &Path) -> bool {
+    SYSTEM_ROOTS.iter().any(|r| canonical.starts_with(r))
+        && !DATA_UNDER_SYSTEM.iter().any(|r| canonical.starts_with(r))
+}
 
 /// The folders files may be read from, canonicalised.
 #[derive(Debug, Clone)]
@@ -58,7 +68,7 @@ impl Confinement {
             std::io::ErrorKind::NotFound => format!("{shown} does not exist"),
             _ => format!("{shown} cannot be resolved: {}", io_reason(&e)),
         })?;
-        if SYSTEM_ROOTS.iter().any(|r| canonical.starts_with(r)) {
+        if is_system(&canonical) {
             return Err(format!(
                 "{shown} resolves to {}, a system file: only regular files inside the scenario's folder (or a folder given with --allow-dir) are read",
                 shown_path(&canonical)
@@ -162,7 +172,7 @@ fn io_reason(e: &std::io::Error) -> String {
 
 /// Refuses anything but a regular file of at most `limit` bytes, naming what it is instead.
 fn check_regular(shown: &str, meta: &Metadata, limit: u64) -> Result<(), String> {
-    let kind = file_kind(meta);
+    let kind = crate::input_file::kind(meta);
     if kind != "regular file" {
         return Err(format!(
             "{shown} is a {kind}, not a regular file: only regular files are read"
@@ -176,37 +186,6 @@ fn check_regular(shown: &str, meta: &Metadata, limit: u64) -> Result<(), String>
         ));
     }
     Ok(())
-}
-
-/// What a file system entry is, in words.
-fn file_kind(meta: &Metadata) -> &'static str {
-    let t = meta.file_type();
-    if t.is_file() {
-        return "regular file";
-    }
-    if t.is_dir() {
-        return "folder";
-    }
-    if t.is_symlink() {
-        return "symbolic link";
-    }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::FileTypeExt;
-        if t.is_fifo() {
-            return "FIFO (named pipe)";
-        }
-        if t.is_socket() {
-            return "socket";
-        }
-        if t.is_char_device() {
-            return "character device";
-        }
-        if t.is_block_device() {
-            return "block device";
-        }
-    }
-    "special file"
 }
 
 /// Opens for reading without following a final symbolic link and without blocking (a FIFO

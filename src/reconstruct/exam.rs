@@ -9,8 +9,10 @@ use glam::DVec3;
 
 use crate::diagnostic::Diagnostic;
 use crate::expand::{Run, expand_run};
+use crate::output::received::{MAX_IMAGE_BYTES, MAX_TABLE_BYTES, ReceivedFolder};
 use crate::phantom::{self, TriMesh};
 use crate::scenario::{self, PoseRange, PositionRange, Scenario};
+use exr::prelude::{ReadChannels, ReadLayers};
 
 /// A bead of a phantom's table (`phantoms/<id>.csv` or `phantoms/<id>-beads.csv`), in the
 /// phantom's own frame (the box frame for the calibration box).
@@ -68,6 +70,7 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         },
         0,
     );
+    let folder = ReceivedFolder::unlisted(out);
     let mut beads = BTreeMap::new();
     for p in &loaded.scenario.phantoms {
         let name = if p.mesh.is_some() {
@@ -75,9 +78,10 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         } else {
             format!("{}.csv", p.id)
         };
-        let file = out.join("phantoms").join(name);
-        if file.exists() {
-            beads.insert(p.id.clone(), read_bead_table(&file)?);
+        let rel = format!("phantoms/{name}");
+        if folder.exists(&rel) {
+            let bytes = folder.read(&rel, MAX_TABLE_BYTES).map_err(|d| vec![d])?;
+            beads.insert(p.id.clone(), parse_bead_table(&folder.path(&rel), &bytes)?);
         }
     }
     let physics = if loaded.scenario.imaging.is_attenuation() {
@@ -100,8 +104,13 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
 
 /// Reads a bead table: `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.
 pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
-    let mut reader = csv::Reader::from_path(file)
-        .map_err(|e| vec![Diagnostic::file_error(file, format!("cannot read: {e}"))])?;
+    let bytes = crate::output::received::read_named(file, MAX_TABLE_BYTES).map_err(|d| vec![d])?;
+    parse_bead_table(file, &bytes)
+}
+
+/// Parses a bead table read from `file` (see [`read_bead_table`]).
+fn parse_bead_table(file: &Path, bytes: &[u8]) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
+    let mut reader = csv::Reader::from_reader(bytes);
     let mut out = Vec::new();
     for (k, row) in reader.records().enumerate() {
         let bad = |what: String| {
@@ -128,28 +137,28 @@ pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
 
 /// The run folders of `OUT/runs`, sorted by name.
 pub fn run_folders(out: &Path) -> Result<Vec<(String, PathBuf)>, Vec<Diagnostic>> {
-    let dir = out.join("runs");
-    let mut v: Vec<(String, PathBuf)> = std::fs::read_dir(&dir)
-        .map_err(|e| {
-            vec![Diagnostic::file_error(
-                &dir,
-                format!("cannot list the run folders: {e}"),
-            )]
-        })?
-        .flatten()
-        .filter(|e| e.path().is_dir())
-        .map(|e| (e.file_name().to_string_lossy().into_owned(), e.path()))
-        .collect();
-    v.sort();
-    Ok(v)
+    let folder = ReceivedFolder::unlisted(out);
+    let names = folder.sub_folders("runs").map_err(|d| vec![d])?;
+    Ok(names
+        .into_iter()
+        .map(|name| {
+            let dir = folder.path(&format!("runs/{name}"));
+            (name, dir)
+        })
+        .collect())
 }
 
-/// A grayscale image: `(width, height, pixels)`, from `<stem>.tiff` or else `<stem>.exr`.
+/// A grayscale image: `(width, height, pixels)`, from `<stem>.tiff` or else `<stem>.exr` of the
+/// run folder `dir`, each opened through the gate for received folders (a regular file, not a
+/// link, within [`MAX_IMAGE_BYTES`]); the decoders' own limits bound what a header can ask for.
 pub fn read_image(dir: &Path, stem: &str) -> Result<(u32, u32, Vec<u16>), String> {
-    let tiff_path = dir.join(format!("{stem}.tiff"));
-    if tiff_path.exists() {
-        let file =
-            std::fs::File::open(&tiff_path).map_err(|e| format!("{}: {e}", tiff_path.display()))?;
+    let folder = ReceivedFolder::unlisted(dir);
+    let tiff_name = format!("{stem}.tiff");
+    if folder.exists(&tiff_name) {
+        let tiff_path = folder.path(&tiff_name);
+        let file = folder
+            .open(&tiff_name, MAX_IMAGE_BYTES)
+            .map_err(|d| format!("{}: {}", tiff_path.display(), d.message))?;
         let mut dec = tiff::decoder::Decoder::new(std::io::BufReader::new(file))
             .map_err(|e| format!("{}: {e}", tiff_path.display()))?;
         let (w, h) = dec.dimensions().map_err(|e| e.to_string())?;
@@ -157,21 +166,49 @@ pub fn read_image(dir: &Path, stem: &str) -> Result<(u32, u32, Vec<u16>), String
             .read_image()
             .map_err(|e| format!("{}: {e}", tiff_path.display()))?
         {
-            tiff::decoder::DecodingResult::U16(v) => Ok((w, h, v)),
+            tiff::decoder::DecodingResult::U16(v)
+                if v.len() as u64 == u64::from(w) * u64::from(h) =>
+            {
+                Ok((w, h, v))
+            }
             _ => Err(format!(
                 "{} is not a 16-bit grayscale TIFF",
                 tiff_path.display()
             )),
         };
     }
-    let exr_path = dir.join(format!("{stem}.exr"));
-    let image = exr::prelude::read_first_flat_layer_from_file(&exr_path)
+    let exr_name = format!("{stem}.exr");
+    let exr_path = folder.path(&exr_name);
+    let file = folder
+        .open(&exr_name, MAX_IMAGE_BYTES)
+        .map_err(|d| format!("{}: {}", exr_path.display(), d.message))?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::BufReader::new(file))
         .map_err(|e| format!("{}: {e}", exr_path.display()))?;
     let size = image.layer_data.size;
-    let values: Vec<u16> = image.layer_data.channel_data.list[0]
+    let Some(channel) = image.layer_data.channel_data.list.first() else {
+        return Err(format!("{} has no channel", exr_path.display()));
+    };
+    let values: Vec<u16> = channel
         .sample_data
         .values_as_f32()
         .map(|v| v as u16)
         .collect();
-    Ok((size.0 as u32, size.1 as u32, values))
+    let (w, h) = (
+        u32::try_from(size.0).map_err(|_| format!("{} is too wide", exr_path.display()))?,
+        u32::try_from(size.1).map_err(|_| format!("{} is too tall", exr_path.display()))?,
+    );
+    if values.len() as u64 != u64::from(w) * u64::from(h) {
+        return Err(format!(
+            "{} holds {} values for {w} × {h} pixels",
+            exr_path.display(),
+            values.len()
+        ));
+    }
+    Ok((w, h, values))
 }

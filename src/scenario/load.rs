@@ -30,14 +30,15 @@ pub struct LoadedScenario {
     pub warnings: Vec<Diagnostic>,
 }
 
+/// Largest scenario file read: 64 MiB (the shipped ones are a few kB; a study listing thousands
+/// of patients stays far below).
+pub const MAX_SCENARIO_BYTES: u64 = 64 * 1024 * 1024;
+
 /// Reads, parses and validates a scenario file. On failure every error found is returned
 /// (a parse error stops at the first; semantic checks report them all).
 pub fn load(path: &Path) -> Result<LoadedScenario, Vec<Diagnostic>> {
-    let bytes = std::fs::read(path).map_err(|e| {
-        vec![
-            Diagnostic::file_error(path, format!("cannot read the scenario file: {e}"))
-                .with_help("give the path of a scenario .toml file, e.g. scenarios/biplanar.toml"),
-        ]
+    let bytes = crate::input_file::read_named(path, MAX_SCENARIO_BYTES).map_err(|d| {
+        vec![d.with_help("give the path of a scenario .toml file, e.g. scenarios/biplanar.toml")]
     })?;
     let text = String::from_utf8(bytes).map_err(|e| {
         vec![

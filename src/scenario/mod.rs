@@ -15,8 +15,10 @@ mod study;
 mod study_check;
 mod validate;
 
-pub use load::{LoadedScenario, from_text, hex, load};
+pub use load::{LoadedScenario, MAX_SCENARIO_BYTES, from_text, hex, load};
+pub use magnitudes::MAX_ABS;
 pub use model::*;
+pub use validate::{MAX_ID_BYTES, MIN_PIXEL_PITCH_MM, id_problem};
 
 /// One level of the protocol: the binary mode's noise level, or attenuation mode's exposure
 /// factor (then the noise level is 0: noise follows from the photons).

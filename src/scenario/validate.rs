@@ -9,6 +9,10 @@ use crate::diagnostic::{Diagnostic, KeyPath, Locator, cut};
 /// Largest pixel count per axis (16-bit TIFF dimensions stay well within this).
 const MAX_PIXELS_PER_AXIS: u32 = 65_535;
 
+/// The finest pixel pitch a detector may have, mm (1 µm: the finest X-ray detectors have
+/// pixels of a few µm).
+pub const MIN_PIXEL_PITCH_MM: f64 = 1e-3;
+
 /// Longest id, in bytes. Ids name files and folders: `<exposure>-<detector>.tiff` is at most
 /// 2 × 100 + 6 = 206 bytes, and a scenario name leaves room for staging suffixes, within the
 /// 255 bytes per name component that Linux, macOS and Windows file systems allow.
@@ -374,9 +378,39 @@ impl Checker<'_> {
                 format!("give [columns, rows], each 1..={MAX_PIXELS_PER_AXIS}"),
             );
         }
+        // The pitch is a physical size: below MIN_PIXEL_PITCH_MM it is a typo or a hostile file,
+        // and would only overflow later (a pixel 1e-300 mm wide has no finite resolution).
+        let pitch_problem = |pitch: [f64; 2]| {
+            pitch
+                .iter()
+                .any(|&x| x.is_finite() && x > 0.0 && x < MIN_PIXEL_PITCH_MM)
+                .then(|| format!("{:?} mm", pitch))
+        };
         match (d.size_mm, d.pixel_pitch_mm) {
-            (Some(s), None) => self.positive(&p.key("size_mm"), &s, "detector size"),
-            (None, Some(s)) => self.positive(&p.key("pixel_pitch_mm"), &s, "pixel pitch"),
+            (Some(s), None) => {
+                self.positive(&p.key("size_mm"), &s, "detector size");
+                let pitch = [
+                    s[0] / f64::from(d.pixels[0].max(1)),
+                    s[1] / f64::from(d.pixels[1].max(1)),
+                ];
+                if let Some(shown) = pitch_problem(pitch) {
+                    self.err(
+                        p.key("size_mm"),
+                        format!("size_mm {s:?} over pixels {:?} gives a pixel pitch of {shown}, finer than {MIN_PIXEL_PITCH_MM} mm", d.pixels),
+                        format!("X-ray detectors have pixels of about 0.05–1 mm: give size_mm in mm (each side at least {MIN_PIXEL_PITCH_MM} mm per pixel)"),
+                    );
+                }
+            }
+            (None, Some(s)) => {
+                self.positive(&p.key("pixel_pitch_mm"), &s, "pixel pitch");
+                if let Some(shown) = pitch_problem(s) {
+                    self.err(
+                        p.key("pixel_pitch_mm"),
+                        format!("pixel pitch {shown} is finer than {MIN_PIXEL_PITCH_MM} mm"),
+                        "X-ray detectors have pixels of about 0.05–1 mm: give the pitch in mm",
+                    );
+                }
+            }
             (Some(_), Some(_)) => self.err(
                 p.key("pixel_pitch_mm"),
                 "both size_mm and pixel_pitch_mm are given",

@@ -74,6 +74,32 @@ pub fn runs_of_shard(run_count: usize, spec: ShardSpec) -> Vec<usize> {
     (spec.index..run_count).step_by(spec.count.max(1)).collect()
 }
 
+/// Most shards a protocol is split into without `--allow-large` (as many as
+/// [`crate::cost::MAX_RUNS`]); beyond it, with `--allow-large`, at most one shard per run.
+pub const MAX_SHARDS: usize = 100_000;
+
+/// Checks the number of shards against the caps (see [`MAX_SHARDS`]) for a protocol of
+/// `run_count` runs, so that nothing proportional to the count is ever allocated beyond what the
+/// runs already take. The error names the cap and `--allow-large`.
+pub fn check_count(count: usize, run_count: usize, allow_large: bool) -> Result<(), String> {
+    if count <= MAX_SHARDS {
+        return Ok(());
+    }
+    if !allow_large {
+        return Err(format!(
+            "{count} shards are more than the {MAX_SHARDS} allowed (this protocol has {run_count} run(s)); with {} a protocol may be split into at most one shard per run",
+            crate::cost::OVERRIDE_FLAG
+        ));
+    }
+    if count > run_count {
+        return Err(format!(
+            "{count} shards for {run_count} run(s): beyond {MAX_SHARDS} shards, even with {}, a protocol is split into at most one shard per run",
+            crate::cost::OVERRIDE_FLAG
+        ));
+    }
+    Ok(())
+}
+
 /// Parses `K/N` (0 ≤ K < N): the value of `--shard`.
 pub fn parse_spec(text: &str) -> Result<ShardSpec, String> {
     let bad = || {

@@ -10,6 +10,11 @@ pub const TSV_MIN_ENERGY_KEV: f64 = 1.0;
 /// The highest energy a user spectrum may hold, keV.
 pub const TSV_MAX_ENERGY_KEV: f64 = 200.0;
 
+/// The largest sum of a user spectrum's photon numbers (and of photons × keV): far above any
+/// physical count, far below where the arithmetic on spectra (normalising, weighting, summing
+/// per pixel) would overflow.
+pub const MAX_TOTAL: f64 = 1e200;
+
 /// Parses the TSV text of a user spectrum (see [`Spectrum::from_tsv`]); errors carry the 1-based
 /// line they are about.
 pub(super) fn parse(text: &str) -> Result<Spectrum, (usize, String)> {
@@ -18,6 +23,7 @@ pub(super) fn parse(text: &str) -> Result<Spectrum, (usize, String)> {
     let mut first_row_line = None;
     let mut header_allowed = true;
     let mut last_line = 0;
+    let (mut total_photons, mut total_energy) = (0.0f64, 0.0f64);
     for (index, raw) in text.lines().enumerate() {
         let line = index + 1;
         last_line = line;
@@ -74,6 +80,18 @@ pub(super) fn parse(text: &str) -> Result<Spectrum, (usize, String)> {
                 ),
             ));
         }
+        // Each number is finite, but their sums must be too: the spectrum is normalised by its
+        // total and weighted by energy, and an overflowing sum would make every image zero.
+        total_photons += count;
+        total_energy += count * energy;
+        if !(total_photons <= MAX_TOTAL && total_energy <= MAX_TOTAL) {
+            return Err((
+                line,
+                format!(
+                    "the photon numbers up to this row add up to more than {MAX_TOTAL:e} (or their energy-weighted sum does): only their ratios matter, so scale them down (e.g. to photons per keV per mAs, or to a fraction of the total)"
+                ),
+            ));
+        }
         first_row_line.get_or_insert(line);
         energies_kev.push(energy);
         photons.push(count);
@@ -127,6 +145,16 @@ mod tests {
         assert_eq!(s.photons, vec![1.5, 2.0, 0.0]);
         assert!(!s.absolute);
         assert_eq!(parse("1 1\n200 1e3").unwrap().photons, vec![1.0, 1000.0]);
+    }
+
+    #[test]
+    fn finite_rows_whose_sum_overflows_are_refused_at_the_row() {
+        let (line, msg) = err("20 1e308\n30 1e308\n");
+        assert_eq!(line, 1, "{msg}");
+        assert!(msg.contains("add up to more than"), "{msg}");
+        let (line, _) = err("1 1\n100 5e197\n200 5e197\n");
+        assert_eq!(line, 3);
+        assert!(parse("20 1e150\n30 1e150\n").is_ok());
     }
 
     #[test]

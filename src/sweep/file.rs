@@ -72,17 +72,21 @@ pub struct SweepFile {
 /// The most points a sweep may have without `--allow-large`.
 pub const MAX_POINTS: usize = 1000;
 
+/// The most points a sweep may have with `--allow-large`: every point is a scenario prepared in
+/// memory and a folder, so the cap stays finite (a grid of 2^36 points would abort on
+/// allocation, not run).
+pub const MAX_POINTS_LARGE: usize = 100_000;
+
 impl SweepFile {
     /// Reads and checks a sweep file: TOML, known keys, at least one parameter, values and axis
     /// of equal length, key paths well formed and distinct, zipped lengths equal.
     pub fn read(path: &Path) -> Result<SweepFile, Vec<Diagnostic>> {
-        let bytes = std::fs::read(path).map_err(|e| {
-            vec![
-                Diagnostic::file_error(path, format!("cannot read the sweep file: {e}")).with_help(
+        let bytes = crate::input_file::read_named(path, crate::scenario::MAX_SCENARIO_BYTES)
+            .map_err(|d| {
+                vec![d.with_help(
                     "give the path of a sweep .toml file, e.g. scenarios/sweeps/tube_angle.toml",
-                ),
-            ]
-        })?;
+                )]
+            })?;
         let text = std::str::from_utf8(&bytes).map_err(|e| {
             vec![
                 Diagnostic::file_error(
@@ -142,10 +146,14 @@ impl SweepFile {
                         KeyPath::root().key("parameters"),
                         format!(
                             "the sweep has {} points, more than the {max} allowed",
-                            count.map_or("too many".to_string(), |n| n.to_string())
+                            count.map_or("more than 2^64".to_string(), |n| n.to_string())
                         ),
                     )
-                    .with_help("use fewer values, combine = \"zip\", or pass --allow-large"),
+                    .with_help(if max < MAX_POINTS_LARGE {
+                        format!("use fewer values, combine = \"zip\", or pass --allow-large (which allows up to {MAX_POINTS_LARGE} points)")
+                    } else {
+                        format!("use fewer values or combine = \"zip\": even with --allow-large a sweep has at most {MAX_POINTS_LARGE} points; split it into several sweeps")
+                    }),
             ]),
         }
     }

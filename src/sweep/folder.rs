@@ -21,6 +21,7 @@ use crate::diagnostic::Diagnostic;
 use crate::output::atomic::{Once, is_partial, write_once};
 use crate::output::commit::guard::{self, Existing};
 use crate::output::commit::lock::{LockError, OutputLock};
+use crate::output::received::{MAX_JSON_BYTES, ReceivedFolder, check_name};
 use crate::scenario::hex;
 
 /// The index file of a sweep folder.
@@ -144,28 +145,109 @@ pub fn is_sweep_folder(dir: &Path) -> bool {
     dir.join(INDEX).is_file()
 }
 
-/// Reads the index of the sweep folder `dir`; errors name the file.
+/// Reads the index of the sweep folder `dir`; errors name the file. The index is the sender's
+/// (a received sweep folder): it is read through the gate for received folders, its point ids
+/// must be plain names, each once, and its scenario paths the ones rsasim writes, so that no
+/// point leads out of the folder.
 pub fn read_index(dir: &Path) -> Result<Index, Vec<Diagnostic>> {
     let path = dir.join(INDEX);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        vec![Diagnostic::file_error(
-            &path,
-            format!("cannot read it: {e}"),
-        )]
-    })?;
-    let index: Index = serde_json::from_str(&text).map_err(|e| {
+    let bytes = ReceivedFolder::unlisted(dir)
+        .read(INDEX, MAX_JSON_BYTES)
+        .map_err(|d| vec![d])?;
+    let index: Index = serde_json::from_slice(&bytes).map_err(|e| {
         vec![
-            Diagnostic::file_error(&path, format!("not a sweep index: {e}"))
-                .with_help("a sweep folder is written by `rsasim sweep FILE --out DIR`"),
+            Diagnostic::file_error(
+                &path,
+                format!(
+                    "not a sweep index: {}",
+                    crate::diagnostic::cut(&e.to_string())
+                ),
+            )
+            .with_help("a sweep folder is written by `rsasim sweep FILE --out DIR`"),
         ]
     })?;
     if index.format != FORMAT {
         return Err(vec![Diagnostic::file_error(
             &path,
-            format!("format `{}`, not `{FORMAT}`", index.format),
+            format!(
+                "`format` is {:?}, not `{FORMAT}`",
+                crate::diagnostic::cut(&index.format)
+            ),
         )]);
     }
+    let mut seen = std::collections::HashSet::with_capacity(index.points.len());
+    for point in &index.points {
+        check_name(&path, "points[].id", &point.id).map_err(|d| vec![d])?;
+        if !seen.insert(point.id.as_str()) {
+            return Err(vec![Diagnostic::file_error(
+                &path,
+                format!("`points[].id` {:?} appears twice", point.id),
+            )
+            .with_help("a sweep folder is written by `rsasim sweep FILE --out DIR`: ask the sender for the folder as rsasim wrote it")]);
+        }
+        if point.scenario != format!("{POINTS_DIR}/{}.toml", point.id) {
+            return Err(vec![Diagnostic::file_error(
+                &path,
+                format!(
+                    "point {}: `scenario` is {:?}, not {POINTS_DIR}/{}.toml as rsasim writes it",
+                    point.id,
+                    crate::diagnostic::cut(&point.scenario),
+                    point.id
+                ),
+            )]);
+        }
+    }
     Ok(index)
+}
+
+/// The output folder of `point` in the received sweep folder `dir`, checked before anything reads
+/// or writes it: a real folder (not a symbolic link) whose manifest names the scenario SHA-256
+/// that `sweep.json` lists for the point.
+pub fn point_folder(dir: &Path, point: &IndexPoint) -> Result<PathBuf, Vec<Diagnostic>> {
+    let out = dir.join(&point.id);
+    let meta = std::fs::symlink_metadata(&out).map_err(|e| {
+        vec![
+            Diagnostic::file_error(
+                &out,
+                format!(
+                    "point {}: its output folder cannot be read: {}",
+                    point.id,
+                    crate::input_file::reason(&e)
+                ),
+            )
+            .with_help("run the sweep first: rsasim sweep FILE --out DIR"),
+        ]
+    })?;
+    if !meta.is_dir() {
+        return Err(vec![Diagnostic::file_error(
+            &out,
+            format!(
+                "point {}: its output is a {}, not a folder: a sweep folder's points are never followed out of it",
+                point.id,
+                crate::input_file::kind(&meta)
+            ),
+        )
+        .with_help("ask the sender for the sweep folder as rsasim wrote it")]);
+    }
+    let manifest_file = out.join("manifest.json");
+    let (manifest, _) = crate::output::verify::read_manifest(&out)
+        .map_err(|f| vec![Diagnostic::file_error(&manifest_file, f.problem)])?;
+    if manifest.scenario_sha256.as_deref() != Some(point.scenario_sha256.as_str()) {
+        return Err(vec![Diagnostic::file_error(
+            &manifest_file,
+            format!(
+                "`scenario_sha256` is {:?}, but sweep.json lists point {} with {}",
+                manifest
+                    .scenario_sha256
+                    .as_deref()
+                    .map(crate::diagnostic::cut),
+                point.id,
+                crate::diagnostic::cut(&point.scenario_sha256)
+            ),
+        )
+        .with_help("the point's folder holds the output of another scenario: ask the sender for the sweep folder as rsasim wrote it")]);
+    }
+    Ok(out)
 }
 
 /// A sweep folder claimed by this process (with the lock on it, held until dropped), or joined
@@ -225,7 +307,7 @@ fn existing_sweep(dir: &Path, path: &Path, index: &Index) -> Result<bool, Vec<Di
             if empty {
                 return Ok(false);
             }
-            match std::fs::read(path.join(INDEX)) {
+            match ReceivedFolder::unlisted(path).read(INDEX, MAX_JSON_BYTES) {
                 Ok(bytes) if bytes == index.to_bytes() => Ok(true),
                 Ok(_) => Err(refusal(
                     dir,
@@ -330,11 +412,9 @@ pub fn join(sweep: &Sweep, dir: &Path) -> Result<SweepFolder, Vec<Diagnostic>> {
 /// `Ok` when `out` is a complete simulation output of the scenario with hash `sha256`.
 fn point_output_matches(out: &Path, sha256: &str) -> Result<(), String> {
     guard::complete_output(out)?;
-    let manifest: serde_json::Value = std::fs::read(out.join("manifest.json"))
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok())
-        .ok_or("its manifest.json cannot be read")?;
-    match manifest.get("scenario_sha256").and_then(|s| s.as_str()) {
+    let (manifest, _) = crate::output::verify::read_manifest(out)
+        .map_err(|_| "its manifest.json cannot be read".to_string())?;
+    match manifest.scenario_sha256.as_deref() {
         Some(s) if s == sha256 => Ok(()),
         _ => Err("its manifest names another scenario".into()),
     }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use sha2::{Digest, Sha256};
 
-use super::file::{MAX_POINTS, SweepFile};
+use super::file::{MAX_POINTS, MAX_POINTS_LARGE, SweepFile};
 use super::points::{choices, point_id, set_at, value_text};
 use crate::diagnostic::{Diagnostic, KeyPath, Severity};
 use crate::scenario::{self, hex};
@@ -83,12 +83,16 @@ fn assignments(parameters: &[Parameter], choice: &[usize]) -> String {
 }
 
 /// Reads the sweep file and its base scenario, builds every point's scenario and checks it like
-/// the main command (warnings are left to the run of each point, which names its file; with `allow`: `--allow-dir`, `--allow-large`, which also lifts the cap of
-/// [`MAX_POINTS`] points). Every point shares the base scenario's seed unless the sweep varies
+/// the main command (warnings are left to the run of each point, which names its file; with `allow`: `--allow-dir`, `--allow-large`, which also raises the cap of
+/// [`MAX_POINTS`] points to [`MAX_POINTS_LARGE`]). Every point shares the base scenario's seed unless the sweep varies
 /// `seed` itself.
 pub fn prepare(path: &Path, allow: &Allowances) -> Result<Sweep, Vec<Diagnostic>> {
     let file = SweepFile::read(path)?;
-    file.point_count(if allow.large { usize::MAX } else { MAX_POINTS })?;
+    file.point_count(if allow.large {
+        MAX_POINTS_LARGE
+    } else {
+        MAX_POINTS
+    })?;
     let scenario_at = KeyPath::root().key("scenario");
     if !file.scenario_path.is_file() {
         return Err(vec![
@@ -104,12 +108,11 @@ pub fn prepare(path: &Path, allow: &Allowances) -> Result<Sweep, Vec<Diagnostic>
         ]);
     }
     let base = scenario::load(&file.scenario_path)?;
-    let base_text = std::fs::read_to_string(&file.scenario_path).map_err(|e| {
-        vec![Diagnostic::file_error(
-            &file.scenario_path,
-            format!("cannot read the scenario file: {e}"),
-        )]
-    })?;
+    let base_text = crate::input_file::read_named_text(
+        &file.scenario_path,
+        crate::scenario::MAX_SCENARIO_BYTES,
+    )
+    .map_err(|d| vec![d])?;
     let base_doc: toml::Table = base_text.parse().map_err(|e: toml::de::Error| {
         vec![Diagnostic::file_error(
             &file.scenario_path,

@@ -223,7 +223,7 @@ fn measured_migration(
     options: &StudyOptions,
 ) -> Result<(MigrationMeasured, String), Vec<Diagnostic>> {
     if let Some(csv) = &options.migration_csv {
-        let migrations = csv_input::read_migration_csv(csv)?;
+        let migrations = csv_input::read_migration_csv(csv, Some(study))?;
         let (reference_exam, _, _) =
             design_roles(study).map_err(|e| vec![Diagnostic::file_error(out, e)])?;
         return Ok((
@@ -244,7 +244,15 @@ fn measured_migration(
     softwares.sort_unstable();
     softwares.dedup();
     let file = out.join(MIGRATION_MEASURED_FILE);
-    if let Ok(text) = std::fs::read_to_string(&file) {
+    let folder = crate::output::received::ReceivedFolder::unlisted(out);
+    if folder.exists(MIGRATION_MEASURED_FILE) {
+        let bytes = folder
+            .read(
+                MIGRATION_MEASURED_FILE,
+                crate::output::received::MAX_JSON_BYTES,
+            )
+            .map_err(|d| vec![d])?;
+        let text = String::from_utf8_lossy(&bytes);
         let written: MigrationMeasured = serde_json::from_str(&text).map_err(|e| {
             vec![
                 Diagnostic::file_error(&file, format!("line {}: {e}", e.line()))
@@ -304,11 +312,13 @@ pub fn score(
     for m in &measured.migrations {
         by_key.insert((&m.patient, &m.exam, &m.segment), m);
     }
+    let patients_by_id: std::collections::HashMap<&str, &crate::output::study::StudyPatient> =
+        study.patients.iter().map(|p| (p.id.as_str(), p)).collect();
     let truth_of = |patient: &str, exam: &str, segment: &str| -> Option<[f64; 7]> {
         if exam == reference_exam {
             return Some([0.0; 7]);
         }
-        let p = study.patients.iter().find(|p| p.id == patient)?;
+        let p = patients_by_id.get(patient)?;
         let t = p
             .migration
             .iter()

@@ -72,6 +72,26 @@ fn system_files_devices_fifos_and_folders_are_refused_quickly() {
     assert!(start.elapsed().as_secs() < 5);
 }
 
+/// A scenario's folder under /dev/shm (tmpfs, a usual scratch place) is a data folder like any
+/// other; only the devices under /dev are refused.
+#[test]
+fn files_under_dev_shm_are_data() {
+    let shm = Path::new("/dev/shm");
+    if !shm.is_dir() {
+        eprintln!(
+            "files_under_dev_shm_are_data: this machine has no /dev/shm; the rule is checked on the path alone"
+        );
+        assert!(!is_system(Path::new("/dev/shm/x/mesh.stl")));
+        return;
+    }
+    let dir = tempfile::tempdir_in(shm).unwrap();
+    std::fs::write(dir.path().join("mesh.stl"), b"solid").unwrap();
+    let c = Confinement::new(dir.path(), &[]).unwrap();
+    assert_eq!(c.read(&dir.path().join("mesh.stl"), 100).unwrap(), b"solid");
+    assert!(is_system(Path::new("/dev/zero")));
+    assert!(is_system(Path::new("/dev/shmx")));
+}
+
 #[test]
 fn the_size_limit_is_checked_before_reading() {
     let (dir, c) = setup();
