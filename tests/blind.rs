@@ -172,3 +172,53 @@ fn a_moved_images_folder_is_given_with_images_and_a_truth_inside_it_is_refused()
     assert!(String::from_utf8_lossy(&o.stderr).contains("outside the images folder"));
     assert!(!out.exists() && !inside.exists());
 }
+
+/// `export IMAGES --truth TRUTH` writes, file for file, the export of the ordinary layout of the
+/// same scenario (cameras from the truth folder, images from the images folder); the images
+/// folder alone is refused with exit 2, nothing written, pointing at --truth.
+#[test]
+fn a_blind_layout_exports_as_the_ordinary_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (images, truth) = blind(tmp.path());
+    let ordinary = tmp.path().join("ordinary");
+    ok(&[SCENARIO, "--out", s(&ordinary)]);
+    for to in ["xmalab", "autoscoper"] {
+        let (from_blind, from_ordinary) = (
+            tmp.path().join(format!("{to}-blind")),
+            tmp.path().join(format!("{to}-ordinary")),
+        );
+        ok(&[
+            "export",
+            s(&images),
+            "--truth",
+            s(&truth),
+            "--to",
+            to,
+            "--dir",
+            s(&from_blind),
+        ]);
+        ok(&[
+            "export",
+            s(&ordinary),
+            "--to",
+            to,
+            "--dir",
+            s(&from_ordinary),
+        ]);
+        let (a, b) = (hashes(&from_blind), hashes(&from_ordinary));
+        // Everything but the README (which names the folder it was exported from).
+        let strip = |h: Vec<(String, String)>| -> Vec<(String, String)> {
+            h.into_iter().filter(|(p, _)| p != "README.md").collect()
+        };
+        assert_eq!(strip(a), strip(b), "{to}");
+    }
+    let refused = tmp.path().join("refused");
+    let o = rsasim(
+        &["export", s(&images), "--to", "xmalab", "--dir", s(&refused)],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("--truth"), "{stderr}");
+    assert!(!refused.exists());
+}

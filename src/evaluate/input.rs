@@ -208,12 +208,6 @@ fn cut_quoted(message: &str, quote: char) -> String {
     parts.join(&quote.to_string())
 }
 
-/// The 1-based line of the first `"value"` string after the first `"section"` key, to point at
-/// an entity inside a JSON file (serde_json keeps no spans).
-fn json_line(text: &str, section: &str, value: &str) -> Option<(usize, usize)> {
-    json_line_nth(text, section, value, 0)
-}
-
 /// The 1-based line and column of the `nth` (0-based) `"value"` string after the first
 /// `"section"` key.
 fn json_line_nth(text: &str, section: &str, value: &str, nth: usize) -> Option<(usize, usize)> {
@@ -255,17 +249,22 @@ pub fn check_measured(
     m: Measured,
     truth: &Truth,
 ) -> Result<RunMeasurement, Vec<Diagnostic>> {
-    let mut errors = Vec::new();
-    // Locating an entity scans the text, so only the first MAX_ERRORS_PER_FILE errors are
-    // located and kept; the rest are counted (a file of 40,000 bad entries stays linear).
-    let made = std::cell::Cell::new(0usize);
-    let locate = || made.get() < MAX_ERRORS_PER_FILE;
-    let err = |section: &str,
-               index: Option<usize>,
-               field: &str,
-               value: &str,
-               message: String,
-               help: &str| {
+    // Only the first MAX_ERRORS_PER_FILE problems are described, located (which scans the text)
+    // and kept; the rest are counted without building a message, so a file of 400,000 bad
+    // entries costs little more than its parse.
+    let kept: std::cell::RefCell<Vec<Diagnostic>> = std::cell::RefCell::new(Vec::new());
+    let more = std::cell::Cell::new(0usize);
+    let report = |section: &str,
+                  index: Option<usize>,
+                  field: &str,
+                  value: &str,
+                  nth: usize,
+                  describe: &dyn Fn() -> (String, String)| {
+        if kept.borrow().len() >= MAX_ERRORS_PER_FILE {
+            more.set(more.get() + 1);
+            return;
+        }
+        let (message, help) = describe();
         let mut path = KeyPath::root().key(section);
         if let Some(i) = index {
             path = path.index(i);
@@ -275,36 +274,29 @@ pub fn check_measured(
         }
         let mut d = Diagnostic::file_error(file, message).with_help(help);
         d.key_path = Some(path);
-        if locate() {
-            d.line_col = json_line(text, section, value);
-        }
-        made.set(made.get() + 1);
-        d
+        d.line_col = json_line_nth(text, section, value, nth);
+        kept.borrow_mut().push(d);
     };
     if m.format != MEASURED_FORMAT {
-        errors.push(err(
-            "format",
-            None,
-            "",
-            &m.format,
-            format!("unknown format `{}`", cut(&m.format)),
-            "use \"rsasim-measured/1\"",
-        ));
+        report("format", None, "", &m.format, 0, &|| {
+            (
+                format!("unknown format `{}`", cut(&m.format)),
+                "use \"rsasim-measured/1\"".into(),
+            )
+        });
     }
     if m.run != truth.run.id {
-        errors.push(err(
-            "run",
-            None,
-            "",
-            &m.run,
-            format!(
-                "the file says run `{}` but lies in the folder of run `{}` ({})",
-                cut(&m.run),
-                truth.run.id,
-                file.parent().unwrap_or(file).display()
-            ),
-            "write each run's result into that run's folder",
-        ));
+        report("run", None, "", &m.run, 0, &|| {
+            (
+                format!(
+                    "the file says run `{}` but lies in the folder of run `{}` ({})",
+                    cut(&m.run),
+                    truth.run.id,
+                    file.parent().unwrap_or(file).display()
+                ),
+                "write each run's result into that run's folder".into(),
+            )
+        });
     }
     let mut out = RunMeasurement {
         software: m.software.clone(),
@@ -333,43 +325,34 @@ pub fn check_measured(
             let (first, nth) = (entry.0, entry.1);
             entry.1 += 1;
             if nth > 0 {
-                let located = locate();
-                let line_of = |k: usize| {
-                    located
-                        .then(|| json_line_nth(text, section, id, k))
-                        .flatten()
-                        .map_or("an unknown line".to_string(), |(l, _)| format!("line {l}"))
-                };
-                let mut d = err(
-                    section,
-                    Some(i),
-                    "id",
-                    id,
-                    format!(
-                        "{section}[{i}] repeats the id `{}` of {section}[{first}] ({} and {})",
-                        cut(id),
-                        line_of(0),
-                        line_of(nth)
-                    ),
-                    "give each entity once per run",
-                );
-                if located {
-                    d.line_col = json_line_nth(text, section, id, nth);
-                }
-                errors.push(d);
+                report(section, Some(i), "id", id, nth, &|| {
+                    let line_of = |k: usize| {
+                        json_line_nth(text, section, id, k)
+                            .map_or("an unknown line".to_string(), |(l, _)| format!("line {l}"))
+                    };
+                    (
+                        format!(
+                            "{section}[{i}] repeats the id `{}` of {section}[{first}] ({} and {})",
+                            cut(id),
+                            line_of(0),
+                            line_of(nth)
+                        ),
+                        "give each entity once per run".into(),
+                    )
+                });
             }
         }
     }
     let source_ids: Vec<String> = truth.run.sources.iter().map(|x| x.id.clone()).collect();
     let known_sources = KnownIds::new(&source_ids);
     for (i, s) in m.sources.iter().enumerate() {
-        match entity_position(&s.id, s.position_mm, &known_sources, "source") {
+        match entity_position(&s.id, s.position_mm, &known_sources) {
             Ok(p) => {
                 out.sources.insert(s.id.clone(), p);
             }
-            Err((field, msg, help)) => {
-                errors.push(err("sources", Some(i), field, &s.id, msg, &help))
-            }
+            Err(field) => report("sources", Some(i), field, &s.id, 0, &|| {
+                describe_entity(field, &s.id, s.position_mm, &known_sources, "source")
+            }),
         }
     }
     let detector_ids: Vec<String> = truth.run.detectors.iter().map(|x| x.id.clone()).collect();
@@ -378,28 +361,17 @@ pub fn check_measured(
         ("detectors", &m.detectors, KnownIds::new(&detector_ids)),
         ("phantoms", &m.phantoms, KnownIds::new(&phantom_ids)),
     ] {
+        let what = &section[..section.len() - 1];
         for (i, e) in list.iter().enumerate() {
-            let what = &section[..section.len() - 1];
-            let pos = entity_position(&e.id, e.position_mm, &known, what);
+            let pos = entity_position(&e.id, e.position_mm, &known);
             let rot = e.rotation.map(checked_rotation).transpose();
-            let markers_ok = e.markers.iter().enumerate().try_for_each(|(k, b)| {
-                plausible_position(b.position_mm).map(drop).map_err(|msg| {
-                    err(
-                        section,
-                        Some(i),
-                        "markers",
-                        &b.id,
-                        format!(
-                            "{what} `{}`: marker {k} (`{}`): {msg}",
-                            cut(&e.id),
-                            cut(&b.id)
-                        ),
-                        "give three finite numbers in mm, box frame",
-                    )
-                })
-            });
-            match (pos, rot, markers_ok) {
-                (Ok(p), Ok(r), Ok(())) => {
+            let bad_marker = e
+                .markers
+                .iter()
+                .enumerate()
+                .find(|(_, b)| !is_plausible(b.position_mm));
+            match (pos, rot, bad_marker) {
+                (Ok(p), Ok(r), None) => {
                     out.repaired_rotations += usize::from(r.is_some_and(|r| r.repaired));
                     let target = if section == "detectors" {
                         &mut out.detectors
@@ -417,26 +389,46 @@ pub fn check_measured(
                         );
                     }
                 }
-                (Err((field, msg, help)), _, _) => {
-                    errors.push(err(section, Some(i), field, &e.id, msg, &help))
-                }
-                (_, Err(msg), _) => errors.push(err(
-                    section,
-                    Some(i),
-                    "rotation",
-                    &e.id,
-                    format!("{what} `{}`: {msg}", cut(&e.id)),
-                    "write the rotation as three rows of an orthonormal matrix with determinant +1",
-                )),
-                (_, _, Err(d)) => errors.push(d),
+                (Err(field), _, _) => report(section, Some(i), field, &e.id, 0, &|| {
+                    describe_entity(field, &e.id, e.position_mm, &known, what)
+                }),
+                (_, Err(msg), _) => report(section, Some(i), "rotation", &e.id, 0, &|| {
+                    (
+                        format!("{what} `{}`: {msg}", cut(&e.id)),
+                        "write the rotation as three rows of an orthonormal matrix with determinant +1".into(),
+                    )
+                }),
+                (_, _, Some((k, b))) => report(section, Some(i), "markers", &b.id, 0, &|| {
+                    let msg = plausible_position(b.position_mm).err().unwrap_or_default();
+                    (
+                        format!(
+                            "{what} `{}`: marker {k} (`{}`): {msg}",
+                            cut(&e.id),
+                            cut(&b.id)
+                        ),
+                        "give three finite numbers in mm, box frame".into(),
+                    )
+                }),
             }
         }
     }
+    let mut errors = kept.into_inner();
     if errors.is_empty() {
-        Ok(out)
-    } else {
-        Err(summarised(file, errors))
+        return Ok(out);
     }
+    if more.get() > 0 {
+        errors.push(
+            Diagnostic::file_error(
+                file,
+                format!(
+                    "{} more problem(s) of the same kinds in this file, not listed",
+                    more.get()
+                ),
+            )
+            .with_help("fix the ones above and run again"),
+        );
+    }
+    Err(errors)
 }
 
 /// Most problems reported for one results file; the rest are counted.
@@ -457,8 +449,6 @@ fn summarised(file: &Path, mut errors: Vec<Diagnostic>) -> Vec<Diagnostic> {
     }
     errors
 }
-
-type EntityError = (&'static str, String, String);
 
 /// A position that is finite and within ±[`MAX_ABS_MM`], or why not.
 fn plausible_position(p: [f64; 3]) -> Result<DVec3, String> {
@@ -505,26 +495,45 @@ impl<'a> KnownIds<'a> {
     }
 }
 
-fn entity_position(
+/// An entity's position if its id is one of `known` and the position is plausible; otherwise the
+/// field at fault (`id` or `position_mm`), found without building a message.
+fn entity_position(id: &str, p: [f64; 3], known: &KnownIds<'_>) -> Result<DVec3, &'static str> {
+    if !known.set.contains(id) {
+        return Err("id");
+    }
+    if !is_plausible(p) {
+        return Err("position_mm");
+    }
+    Ok(DVec3::from_array(p))
+}
+
+/// The message and help of [`entity_position`]'s error on `field`.
+fn describe_entity(
+    field: &str,
     id: &str,
     p: [f64; 3],
     known: &KnownIds<'_>,
     what: &str,
-) -> Result<DVec3, EntityError> {
-    if !known.set.contains(id) {
-        return Err((
-            "id",
+) -> (String, String) {
+    if field == "id" {
+        return (
             format!("no {what} has the id `{}` in truth.json", cut(id)),
             format!("valid {what} ids: {}", known.shown),
-        ));
+        );
     }
-    plausible_position(p).map_err(|msg| {
-        (
-            "position_mm",
-            format!("{what} `{}`: {msg}", cut(id)),
-            format!("give three finite numbers in mm, box frame, within ±{MAX_ABS_MM:e} mm"),
-        )
-    })
+    (
+        format!(
+            "{what} `{}`: {}",
+            cut(id),
+            plausible_position(p).err().unwrap_or_default()
+        ),
+        format!("give three finite numbers in mm, box frame, within ±{MAX_ABS_MM:e} mm"),
+    )
+}
+
+/// Whether [`plausible_position`] accepts `p`, without building its message.
+fn is_plausible(p: [f64; 3]) -> bool {
+    p.iter().all(|x| x.is_finite() && x.abs() <= MAX_ABS_MM)
 }
 
 /// Reads a CSV long table (see the module doc) holding every run's results. Errors name the

@@ -351,6 +351,41 @@ fn cameras(
                 let rotation = d
                     .rotation
                     .ok_or_else(|| lacks(&format!("rotation of detector `{}`", det.id)))?;
+                // The results are the sender's: positions and rotations checked for physical sense
+                // here, so that the error names this file, not the cameras made from it.
+                let implausible = |field: String| {
+                    Error::Input(vec![Diagnostic::file_error(
+                        &file,
+                        format!("`{field}` is not finite within ±{:e} mm (or a rotation's entries within ±1)", crate::scenario::MAX_ABS),
+                    )
+                    .with_help("give a results file with a plausible calibration (mm, box frame), or export the true calibration")])
+                };
+                let plausible = |v: &[f64]| {
+                    v.iter()
+                        .all(|x| x.is_finite() && x.abs() <= crate::scenario::MAX_ABS)
+                };
+                if !plausible(&s.position_mm) {
+                    return Err(implausible(format!(
+                        "sources[{}].position_mm",
+                        crate::diagnostic::cut(&s.id)
+                    )));
+                }
+                if !plausible(&d.position_mm) {
+                    return Err(implausible(format!(
+                        "detectors[{}].position_mm",
+                        crate::diagnostic::cut(&d.id)
+                    )));
+                }
+                if !rotation
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite() && x.abs() <= 1.0 + 1e-6)
+                {
+                    return Err(implausible(format!(
+                        "detectors[{}].rotation",
+                        crate::diagnostic::cut(&d.id)
+                    )));
+                }
                 let posed = DetectorState {
                     position_mm: DVec3::from_array(d.position_mm),
                     rotation: rotation_from_rows(rotation),

@@ -142,7 +142,9 @@ impl Index {
 
 /// Whether `dir` holds a sweep index.
 pub fn is_sweep_folder(dir: &Path) -> bool {
-    dir.join(INDEX).is_file()
+    // Anything named sweep.json makes a sweep folder, so that a FIFO or a link there is refused
+    // by name when the index is read, not taken for an ordinary output.
+    std::fs::symlink_metadata(dir.join(INDEX)).is_ok()
 }
 
 /// Reads the index of the sweep folder `dir`; errors name the file. The index is the sender's

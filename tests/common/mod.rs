@@ -127,3 +127,36 @@ pub fn report_dir(out: &Path) -> PathBuf {
     );
     found.into_iter().next().unwrap()
 }
+
+/// Rewrites `out/manifest.json` as a hostile sender would: `edit` changes the manifest, then its
+/// `manifest_sha256` is recomputed (the SHA-256 of the bytes with that field's value emptied, as
+/// `Manifest::to_bytes` writes it), so the manifest's own check passes.
+pub fn reseal_manifest(out: &Path, edit: impl FnOnce(&mut rsasim::output::Manifest)) {
+    let file = out.join("manifest.json");
+    let mut m: rsasim::output::Manifest =
+        serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    edit(&mut m);
+    std::fs::write(&file, m.to_bytes()).unwrap();
+}
+
+/// Rehashes the files `rels` (relative to `out`, `/` separators) into `out/manifest.json` as a
+/// hostile sender would after rewriting them: their SHA-256 and size, then the manifest's own
+/// hash. A file the manifest does not list is added; a file that no longer exists is dropped.
+pub fn rehash(out: &Path, rels: &[&str]) {
+    use sha2::{Digest, Sha256};
+    reseal_manifest(out, |m| {
+        for rel in rels {
+            let path = out.join(rel);
+            m.files.retain(|f| f.path != *rel);
+            if let Ok(bytes) = std::fs::read(&path) {
+                let sha = Sha256::digest(&bytes);
+                m.files.push(rsasim::output::ManifestFile {
+                    path: rel.to_string(),
+                    sha256: sha.iter().map(|b| format!("{b:02x}")).collect(),
+                    bytes: bytes.len() as u64,
+                });
+            }
+        }
+        m.files.sort_by(|a, b| a.path.cmp(&b.path));
+    });
+}
