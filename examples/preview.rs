@@ -11,8 +11,8 @@
 use std::path::Path;
 use std::process::ExitCode;
 
+use rsasim::output::decode::read_image;
 use rsasim::output::preview::side_by_side;
-use rsasim::reconstruct::exam::read_image;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -24,6 +24,19 @@ pub fn symmetric(rng: &mut ChaCha8Rng, half_width: f64) -> f64 {
     (2.0 * uniform01(rng) - 1.0) * half_width
 }
 
+/// Standard normal samples by Box–Muller over the stream of `label` (for tests).
+#[cfg(test)]
+pub(crate) fn gaussians(label: &str, n: usize) -> Vec<f64> {
+    let mut rng = stream(label);
+    (0..n)
+        .map(|_| {
+            let u1 = 1.0 - uniform01(&mut rng);
+            let u2 = uniform01(&mut rng);
+            libm::sqrt(-2.0 * libm::log(u1)) * libm::cos(std::f64::consts::TAU * u2)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -364,7 +364,7 @@ fn a_detector_psf_blurs_the_edges_and_keeps_the_signal() {
         let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let (w, _, px) =
-            rsasim::reconstruct::exam::read_image(&out.join("runs/n0-r00"), "x-det").unwrap();
+            rsasim::output::decode::read_image(&out.join("runs/n0-r00"), "x-det").unwrap();
         images.push((px, w));
     }
     let total = |px: &[u16]| px.iter().map(|&v| f64::from(v)).sum::<f64>();

@@ -10,6 +10,7 @@ pub mod image;
 pub mod sampled;
 pub mod scene;
 pub mod setup;
+mod shadow;
 
 pub use image::{AttenuationImage, BeadVisibility, Formation, render};
 pub use scene::{Part, parts};

@@ -16,9 +16,9 @@ use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips, window};
 use crate::sampling::{Sampling, adaptive};
 use crate::trace::{Object, PathLengths, Projected};
 
-use super::image::{layers_of, scene_of, shadows_of};
 use super::scene::Part;
 use super::setup::Setup;
+use super::shadow::{layers_of, scene_of, shadows_of};
 
 /// The expected image of `parts` on `frame` from the spot centred at `source_mm`, for the
 /// detector's photons `beam` (per pixel of `frame`) and `detector`.

@@ -114,14 +114,6 @@ pub struct Report {
 }
 
 impl Row {
-    /// The level as shown in reports: `45.0%` (noise) or `×0.25` (exposure).
-    pub fn level_text(&self) -> String {
-        match self.exposure_factor {
-            Some(f) => super::report::format_exposure(f),
-            None => super::report::format_noise(self.noise_level),
-        }
-    }
-
     /// The level as a number for plots: the noise level or the exposure factor.
     pub fn level_value(&self) -> f64 {
         self.exposure_factor.unwrap_or(self.noise_level)

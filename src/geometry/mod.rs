@@ -1,5 +1,5 @@
-//! Geometry shared by every stage: rigid poses, Euler angles, the detector's pixel frame, and the
-//! distance from a point to a triangle.
+//! Geometry shared by every stage: rigid poses, Euler angles, the detector's pixel frame, the
+//! distance from a point to a triangle, and the triangulation and rigid-body fits of markers.
 //!
 //! Conventions (DESIGN.md, "Units and frames"): lengths in millimetres, angles in degrees at every
 //! boundary a person sees, radians only inside. A [`Pose`] maps local to world coordinates as
@@ -10,9 +10,11 @@
 mod detector;
 mod distance;
 mod pose;
+mod rigid;
 
 pub use detector::DetectorFrame;
 pub use distance::point_triangle_distance;
 pub use glam::{DMat3, DVec3};
 pub use pose::{Pose, euler_xyz_deg, rotation_from_rows, rotation_rows, rotation_xyz_deg};
 pub(crate) use pose::{mat3_rows_serde, vec3_serde};
+pub use rigid::{RigidFit, condition_number, fit_rigid, triangulate};

@@ -27,10 +27,9 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::diagnostic::{Diagnostic, cut};
-use crate::geometry::rotation_rows;
+use crate::geometry::{fit_rigid, rotation_rows, triangulate};
 use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
-use crate::reconstruct::rigid::{fit_rigid, triangulate};
 
 /// The frame specification of a calibration object: header, then `x,y,z` per bead.
 pub fn frame_specification(beads_mm: &[DVec3]) -> String {

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use glam::{DMat3, DVec3};
 
 use super::weighted_fit::{fit_rigid_weighted, triangulation_covariance};
-use crate::reconstruct::rigid::{RigidFit, fit_rigid};
+use crate::geometry::{RigidFit, fit_rigid};
 
 /// A marker's residual in a fit between exams.
 #[derive(Debug, Clone, PartialEq)]

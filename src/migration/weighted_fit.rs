@@ -17,8 +17,7 @@
 use glam::{DMat3, DVec3};
 use nalgebra::{Matrix6, Vector6};
 
-use crate::geometry::Pose;
-use crate::reconstruct::rigid::{RigidFit, condition_number, fit_rigid};
+use crate::geometry::{Pose, RigidFit, condition_number, fit_rigid};
 
 /// Gauss–Newton stops when the update is below this (radians and mm).
 const CONVERGED: f64 = 1e-12;

@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod commit;
+pub mod decode;
 pub mod dicom;
 pub mod exr;
 pub mod exr_deflate;

@@ -33,13 +33,15 @@ pub use crate::input_file::{read_named, read_named_text};
 use crate::scenario::hex;
 
 /// Largest JSON file read from a received folder (`truth.json`, results, `study.json`,
-/// `sweep.json`): 64 MiB, far above what rsasim writes (a truth of the paper's protocol is
-/// 40 kB).
-pub const MAX_JSON_BYTES: u64 = 64 * 1024 * 1024;
+/// `sweep.json`): 32 MiB, far above what rsasim writes (a truth of the paper's protocol is
+/// 40 kB, a results file a few kB), and small enough that a file at the cap is parsed and
+/// refused in well under a second.
+pub const MAX_JSON_BYTES: u64 = 32 * 1024 * 1024;
 
-/// Largest `manifest.json` read: 256 MiB (a manifest lists every file of a folder: about 150
-/// bytes a file, so a million files).
-pub const MAX_MANIFEST_BYTES: u64 = 256 * 1024 * 1024;
+/// Largest `manifest.json` read: 64 MiB. A manifest lists every file of a folder in about 150
+/// bytes, so this is about 400,000 files (40,000 runs of a biplanar protocol in two formats); a
+/// forged manifest at the cap is parsed and refused in about a second.
+pub const MAX_MANIFEST_BYTES: u64 = 64 * 1024 * 1024;
 
 /// Largest table read (bead tables, results and migration CSV files): 256 MiB.
 pub const MAX_TABLE_BYTES: u64 = 256 * 1024 * 1024;

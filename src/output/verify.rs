@@ -425,8 +425,13 @@ pub fn verify(dir: &Path, images: Option<&Path>) -> Vec<Verification> {
     vec![first, second]
 }
 
-/// The text `rsasim verify` prints: one line per problem (`<folder>/<file>: <what>`), one per
-/// file not covered, the notes, and a summary line per folder.
+/// Most problems listed per folder (a forged manifest can list millions of missing files); the
+/// rest are counted.
+pub const MAX_PROBLEMS_SHOWN: usize = 100;
+
+/// The text `rsasim verify` prints: one line per problem (`<folder>/<file>: <what>`; at most
+/// [`MAX_PROBLEMS_SHOWN`] per folder, the rest counted), one per file not covered, the notes, and
+/// a summary line per folder.
 pub fn render(results: &[Verification]) -> String {
     let mut out = String::new();
     for v in results {
@@ -437,8 +442,15 @@ pub fn render(results: &[Verification]) -> String {
                 v.folder.join(path).display().to_string()
             }
         };
-        for f in &v.problems {
+        for f in v.problems.iter().take(MAX_PROBLEMS_SHOWN) {
             out += &format!("{}: {}\n", name(&f.path), f.problem);
+        }
+        if v.problems.len() > MAX_PROBLEMS_SHOWN {
+            out += &format!(
+                "{}: {} more problem(s) not shown\n",
+                v.folder.display(),
+                v.problems.len() - MAX_PROBLEMS_SHOWN
+            );
         }
         for path in &v.not_covered {
             out += &format!("{}: not covered by the manifest\n", name(path));

@@ -1,4 +1,5 @@
-//! Calibration of one beamline (source + detector) from the calibration box's beads.
+//! Calibration of one beamline (source + detector) from the calibration box's beads, and the
+//! ray through a pixel of a calibrated beamline ([`ray_through_pixel`]).
 //!
 //! The pipeline is the one of `rsa-methods.md` §4.1: a Hartley-normalised DLT gives the 3×4
 //! projection matrix P; P is decomposed with the known pixel pitch into the physical model
@@ -38,6 +39,22 @@ impl Beamline {
     pub fn project(&self, pixels: [u32; 2], pitch: [f64; 2], p: DVec3) -> Option<DVec2> {
         self.frame(pixels, pitch).project(self.source_mm, p)
     }
+}
+
+/// The ray from the beamline's source through continuous pixel `uv`: (origin = source, unit
+/// direction towards the pixel's world position on the detector plane).
+pub fn ray_through_pixel(
+    beamline: &Beamline,
+    pixels: [u32; 2],
+    pitch: [f64; 2],
+    uv: DVec2,
+) -> (DVec3, DVec3) {
+    let frame = beamline.frame(pixels, pitch);
+    let on_detector = frame.pose.to_world(frame.pixel_local(uv.x, uv.y));
+    (
+        beamline.source_mm,
+        (on_detector - beamline.source_mm).normalize(),
+    )
 }
 
 /// The result of a refinement or a full calibration.
@@ -439,8 +456,8 @@ pub fn calibrate(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::geometry::rotation_xyz_deg;
-    use crate::random::{stream, uniform01};
+    use crate::geometry::{rotation_xyz_deg, triangulate};
+    use crate::random::gaussians;
 
     pub(crate) const PIXELS: [u32; 2] = [1440, 1440];
     pub(crate) const PITCH: [f64; 2] = [430.0 / 1440.0, 430.0 / 1440.0];
@@ -480,18 +497,6 @@ pub(crate) mod tests {
     fn project_all(b: &Beamline, pts: &[DVec3]) -> Vec<DVec2> {
         pts.iter()
             .map(|p| b.project(PIXELS, PITCH, *p).expect("bead projects"))
-            .collect()
-    }
-
-    /// Standard normal samples by Box–Muller over the crate's deterministic stream.
-    pub(crate) fn gaussians(label: &str, n: usize) -> Vec<f64> {
-        let mut rng = stream(label);
-        (0..n)
-            .map(|_| {
-                let u1 = 1.0 - uniform01(&mut rng);
-                let u2 = uniform01(&mut rng);
-                libm::sqrt(-2.0 * libm::log(u1)) * libm::cos(std::f64::consts::TAU * u2)
-            })
             .collect()
     }
 
@@ -625,5 +630,21 @@ pub(crate) mod tests {
             e.x.abs() < 0.1 && e.y.abs() < 0.1 && e.z.abs() < 5.0,
             "{e:?}"
         );
+    }
+
+    #[test]
+    fn rays_through_projected_pixels_meet_at_the_bead() {
+        let (b1, b2) = (beamline_1(), beamline_2());
+        let p = DVec3::new(23.0, -41.0, 17.0);
+        let r1 = ray_through_pixel(&b1, PIXELS, PITCH, b1.project(PIXELS, PITCH, p).unwrap());
+        let r2 = ray_through_pixel(&b2, PIXELS, PITCH, b2.project(PIXELS, PITCH, p).unwrap());
+        assert!((r1.1.length() - 1.0).abs() < 1e-12);
+        let (x, e) = triangulate(&[r1, r2]);
+        assert!((x - p).length() < 1e-9 && e < 1e-9);
+        // One pixel off in one view gives a crossing-line error of about a pixel pitch × (source-
+        // to-bead / source-to-detector) ≈ 0.2 mm.
+        let uv = b2.project(PIXELS, PITCH, p).unwrap() + DVec2::new(0.0, 1.0);
+        let (_, e) = triangulate(&[r1, ray_through_pixel(&b2, PIXELS, PITCH, uv)]);
+        assert!(e > 0.1 && e < 0.3, "{e}");
     }
 }

@@ -16,7 +16,6 @@ pub mod model;
 pub mod model_outline;
 pub mod overprojection;
 pub mod pipeline;
-pub mod rigid;
 pub mod selvik;
 pub mod shadow;
 pub mod silhouette;

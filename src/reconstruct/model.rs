@@ -11,8 +11,8 @@
 
 use glam::{DVec2, DVec3};
 
-use super::calibrate::Beamline;
-use super::rigid::{RigidFit, fit_rigid, ray_through_pixel, triangulate};
+use super::calibrate::{Beamline, ray_through_pixel};
+use crate::geometry::{RigidFit, fit_rigid, triangulate};
 
 /// Largest distance between two views' rays for a candidate bead, mm.
 pub const CROSSING_LIMIT_MM: f64 = 1.0;

@@ -340,9 +340,8 @@ pub fn calibrate_selvik(
 mod tests {
     use super::*;
     use crate::geometry::rotation_xyz_deg;
-    use crate::reconstruct::calibrate::tests::{
-        PITCH, PIXELS, beamline_1, beamline_2, box_points, gaussians,
-    };
+    use crate::random::gaussians;
+    use crate::reconstruct::calibrate::tests::{PITCH, PIXELS, beamline_1, beamline_2, box_points};
 
     /// The fixture's box for beamline `k`: fiducial plate (9×9 at 20 mm, z = −100) and control
     /// plate (7×7 at 25 mm, z = +100) for beamline 1; the same turned by [0, 90, 0] (plates normal

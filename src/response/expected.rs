@@ -30,56 +30,10 @@
 //! of its pixels crosses (adding μ·0 = +0 to a sum ≥ +0 changes no bit). Other CPUs run the
 //! scalar loop.
 
+use super::Scene;
+use super::bins::Bins;
 use super::exp::exp;
 use super::transmission::Transmission;
-use super::{Beam, Scene};
-
-/// The per-bin weights of a beam on a detector, and their open-field sums.
-#[derive(Debug, Clone)]
-pub(crate) struct Bins {
-    /// `w_b = N_b · η_b`: expected detected photons per pixel in bin b, open field, `f = 1`.
-    pub quanta: Vec<f64>,
-    /// `w_b · e_b`: expected detected energy (keV) per pixel in bin b, open field, `f = 1`.
-    pub energy_kev: Vec<f64>,
-    /// `Σ_b w_b` (bins ascending, from 0).
-    pub open_quanta: f64,
-    /// `Σ_b w_b · e_b` (bins ascending, from 0).
-    pub open_energy_kev: f64,
-}
-
-impl Bins {
-    /// The weights of `beam` on a detector of absorption efficiency `efficiency` (per bin).
-    ///
-    /// # Panics
-    /// When `beam.energies_kev`, `beam.photons_per_pixel` and `efficiency` differ in length.
-    pub fn new(beam: &Beam, efficiency: &[f64]) -> Bins {
-        let n = beam.energies_kev.len();
-        assert!(
-            beam.photons_per_pixel.len() == n && efficiency.len() == n,
-            "beam and efficiency differ in bin count: {} energies, {} photon counts, {} efficiencies",
-            n,
-            beam.photons_per_pixel.len(),
-            efficiency.len()
-        );
-        let quanta: Vec<f64> = beam
-            .photons_per_pixel
-            .iter()
-            .zip(efficiency)
-            .map(|(&n, &eta)| n * eta)
-            .collect();
-        let energy_kev: Vec<f64> = quanta
-            .iter()
-            .zip(&beam.energies_kev)
-            .map(|(&w, &e)| w * e)
-            .collect();
-        Bins {
-            open_quanta: quanta.iter().fold(0.0, |s, &w| s + w),
-            open_energy_kev: energy_kev.iter().fold(0.0, |s, &w| s + w),
-            quanta,
-            energy_kev,
-        }
-    }
-}
 
 /// Pixels per block of the bin loop: the bins run innermost over a block of this many pixels
 /// held in registers (two AVX2 vectors of four lanes), so the exponent, the exponential and both

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::expected::Bins;
+use super::bins::Bins;
 use super::{Beam, DetectorModel, Prepared, RenderScratch, Scene, open_signal};
 
 /// The noise-free expected values of every pixel of an image or of a strip of one.

@@ -71,6 +71,7 @@
 //! the others run through a bin loop over blocks of pixels, with AVX2 intrinsics where the CPU has them (bit for bit the
 //! scalar values; see `expected`).
 
+mod bins;
 mod convolve;
 mod digitise;
 pub mod exp;
@@ -97,7 +98,8 @@ pub use unsharp::Unsharpness;
 use rayon::prelude::*;
 
 use crate::noise::NoiseKey;
-use expected::{Bins, RowScratch, row_expected};
+use bins::Bins;
+use expected::{RowScratch, row_expected};
 use transmission::Transmission;
 
 /// The attenuation (natural log of open-field over object signal) shown white in a radiograph

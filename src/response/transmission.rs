@@ -29,8 +29,8 @@
 //! cost more than it saves, e.g. in the 16 × 16-pixel tiles of adaptive sampling), or when the
 //! beam gives no photons.
 
+use super::bins::Bins;
 use super::exp::{X_MIN, exp};
-use super::expected::Bins;
 
 /// The largest relative error of a table value against the per-bin sum (Hermite remainder).
 pub(crate) const REL_ERROR_BOUND: f64 = 1e-10;

@@ -139,7 +139,9 @@ mod tests {
         assert_eq!(c, b.iter().map(|&v| f64::from(v)).collect::<Vec<_>>());
         let key = NoiseKey::derive(1, 0, 0, "e", "d");
         let sampled = noisy_image(&f, src, &objects, &point(1), 0.3, 4095, &key);
-        let paper = crate::simulate::noisy_image(&f, src, &objects, 0.3, 4095, &key);
+        // The paper's image: the binary projection with the noise added on its background.
+        let mut paper = trace::render_binary(&f, src, &objects, 4095);
+        noise::add_noise(&mut paper, 64, 0.3, 4095, &key);
         assert_eq!(sampled, paper);
     }
 

@@ -55,7 +55,7 @@ pub fn first_run_thumbnails(checked: Checked) -> std::io::Result<Vec<Vec<ImageVi
                 .iter()
                 .map(|e| {
                     let (w, h, pixels) =
-                        crate::reconstruct::exam::read_image(&dir, &format!("{}-{}", e.id, d.id))
+                        crate::output::decode::read_image(&dir, &format!("{}-{}", e.id, d.id))
                             .map_err(std::io::Error::other)?;
                     let png = preview_png(&pixels, w, h, THUMBNAIL_MAX_SIDE_PX);
                     Ok(ImageView {

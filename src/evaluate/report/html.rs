@@ -3,13 +3,13 @@
 
 use std::fmt::Write;
 
-use super::markdown::unicode_minus_numbers;
 use super::{
-    BEYOND, LEGEND, MtpmVerdict, N_LEGEND, columns, confidence_text, iso, mark, mtpm_legend,
-    mtpm_mark, mtpm_verdict, n_note, svg, trueness_precision, unicode_minus, usual_n,
+    BEYOND, LEGEND, MtpmVerdict, N_LEGEND, columns, confidence_text, iso, level_text, mark,
+    mtpm_legend, mtpm_mark, mtpm_verdict, n_note, svg, trueness_precision, unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{ColumnGroup, Report, Table};
+use crate::output::html_text::escape as esc;
 
 /// The stylesheet: the paper's red!25 / blue!25 shades, kept when printing. For paper (A4 or
 /// Letter, portrait): smaller type, no page width limit, table heads repeated on every page, a
@@ -273,7 +273,7 @@ fn grid_part(s: &mut String, table: &Table, first: usize, groups: &[ColumnGroup]
     for row in &table.rows {
         let usual = usual_n(row);
         let n = usual.map_or("—".to_string(), |n| n.to_string());
-        let _ = write!(s, "<tr><th>{}</th><td>{n}</td>", esc(&row.level_text()));
+        let _ = write!(s, "<tr><th>{}</th><td>{n}</td>", esc(&level_text(row)));
         for i in 0..width {
             let mut classes: Vec<&str> = Vec::new();
             let body = match row.cells.get(first + i).and_then(Option::as_ref) {
@@ -330,7 +330,7 @@ fn subject(table: &Table) -> Option<String> {
 /// the threshold is drawn instead.
 fn plots(s: &mut String, table: &Table, threshold: Option<f64>) {
     let levels: Vec<f64> = table.rows.iter().map(|r| r.level_value()).collect();
-    let labels: Vec<String> = table.rows.iter().map(|r| r.level_text()).collect();
+    let labels: Vec<String> = table.rows.iter().map(level_text).collect();
     let axis = if table.level_heading() == "Exposure" {
         svg::Axis::Exposure
     } else {
@@ -414,7 +414,7 @@ reproducibility s_R, limits r = 2.8·s_r and R = 2.8·s_R, and a one-way ANOVA o
             s.push_str("<tr>");
             for (k, f) in iso::fields(g).iter().enumerate() {
                 if shown(k) {
-                    let _ = write!(s, "<td>{}</td>", esc(&unicode_minus_numbers(&f.value)));
+                    let _ = write!(s, "<td>{}</td>", esc(&f.value.unicode_text()));
                 }
             }
             s.push_str("</tr>\n");
@@ -453,9 +453,6 @@ fn attr_id(id: &str) -> String {
         .collect();
     format!("table-{id}")
 }
-
-/// Escapes text and attribute values ([`crate::output::html_text::escape`]).
-pub(crate) use crate::output::html_text::escape as esc;
 
 #[cfg(test)]
 mod tests;

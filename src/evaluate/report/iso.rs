@@ -1,7 +1,7 @@
 //! The ISO 5725-2 section as a list of named fields, shared by the Markdown, HTML and CSV
 //! writers so that every format shows the same values.
 
-use super::format_number;
+use super::{format_number, unicode_minus};
 use crate::evaluate::table::GroupAnalysis;
 
 /// Significance level of the "does the noise level change the result?" test.
@@ -30,6 +30,15 @@ impl Value {
             Value::Ints(v) => v.iter().map(usize::to_string).collect::<Vec<_>>().join("/"),
             Value::Text(s) => s.clone(),
             Value::None => "—".into(),
+        }
+    }
+
+    /// As [`Value::text`], with real minus signs for numbers (HTML and Markdown; text is left
+    /// alone).
+    pub(crate) fn unicode_text(&self) -> String {
+        match self {
+            Value::Num(_) => unicode_minus(&self.text()),
+            _ => self.text(),
         }
     }
 

@@ -3,7 +3,8 @@
 use std::fmt::Write;
 
 use super::{
-    MtpmVerdict, columns, confidence_text, mtpm_verdict, n_note, trueness_precision, usual_n,
+    MtpmVerdict, columns, confidence_text, level_text, mtpm_verdict, n_note, trueness_precision,
+    usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
@@ -81,7 +82,7 @@ fn table_float(s: &mut String, table: &Table, threshold: Option<f64>) {
     s.push_str(" \\\\\n\t\\hline\\hline\n");
     for row in &table.rows {
         let usual = usual_n(row);
-        let _ = write!(s, "\t{}", text(&row.level_text()));
+        let _ = write!(s, "\t{}", text(&level_text(row)));
         for c in &row.cells {
             let _ = write!(
                 s,
@@ -145,7 +146,7 @@ fn n_caption(table: &Table) -> String {
                 .rows
                 .iter()
                 .zip(&ns)
-                .map(|(r, n)| format!("{}: {}", text(&r.level_text()), shown(*n)))
+                .map(|(r, n)| format!("{}: {}", text(&level_text(r)), shown(*n)))
                 .collect();
             format!("$N$ per noise level: {}.", parts.join(", "))
         }

@@ -4,8 +4,8 @@ use std::fmt::Write;
 
 use super::iso;
 use super::{
-    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, mark, mtpm_legend, mtpm_mark, n_note,
-    trueness_precision, unicode_minus, usual_n,
+    BEYOND, LEGEND, N_LEGEND, columns, confidence_text, level_text, mark, mtpm_legend, mtpm_mark,
+    n_note, trueness_precision, unicode_minus, usual_n,
 };
 use crate::evaluate::stats::{Cell, Significance};
 use crate::evaluate::table::{Report, Table};
@@ -151,7 +151,7 @@ fn grid(s: &mut String, table: &Table, cell: &dyn Fn(&Cell) -> (String, Signific
     for row in &table.rows {
         let usual = usual_n(row);
         let n = usual.map_or("—".to_string(), |n| n.to_string());
-        let _ = write!(s, "| {} | {n} |", row.level_text());
+        let _ = write!(s, "| {} | {n} |", level_text(row));
         for c in &row.cells {
             let _ = write!(
                 s,
@@ -205,21 +205,13 @@ s_L, reproducibility s_R, limits r = 2.8·s_r and R = 2.8·s_R, and a one-way AN
     for g in &r.group_analyses {
         s.push('|');
         for f in iso::fields(g) {
-            let _ = write!(s, " {} |", esc(&unicode_minus_numbers(&f.value)));
+            let _ = write!(s, " {} |", esc(&f.value.unicode_text()));
         }
         s.push('\n');
     }
     s.push('\n');
     for g in &r.group_analyses {
         let _ = writeln!(s, "- {}", esc(&iso::answer(g)));
-    }
-}
-
-/// A field's text with real minus signs for numbers (text fields are left alone).
-pub(super) fn unicode_minus_numbers(v: &iso::Value) -> String {
-    match v {
-        iso::Value::Num(_) => unicode_minus(&v.text()),
-        _ => v.text(),
     }
 }
 

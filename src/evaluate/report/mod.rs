@@ -218,6 +218,14 @@ pub(crate) fn columns(table: &Table) -> impl Iterator<Item = (&ColumnGroup, &Col
         .flat_map(|g| g.columns.iter().map(move |c| (g, c)))
 }
 
+/// The row's level as shown in reports: `45.0%` (noise) or `×0.25` (exposure).
+pub(crate) fn level_text(row: &Row) -> String {
+    match row.exposure_factor {
+        Some(f) => format_exposure(f),
+        None => format_noise(row.noise_level),
+    }
+}
+
 /// The most frequent N among the row's cells (ties: the larger); `None` for a row without cells.
 pub(crate) fn usual_n(row: &Row) -> Option<usize> {
     let ns: Vec<usize> = row.cells.iter().flatten().map(|c| c.n).collect();

@@ -5,9 +5,9 @@
 use std::fmt::Write;
 
 use super::format_number;
-use super::html::esc;
 use crate::evaluate::stats::Cell;
 use crate::evaluate::study::{PARAMETERS, PatientSeries, StudyReport};
+use crate::output::html_text::escape as esc;
 
 /// A titled table of plain-text cells.
 struct TextTable {

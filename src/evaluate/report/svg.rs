@@ -3,9 +3,9 @@
 
 use std::fmt::Write;
 
-use super::html::esc;
 use super::unicode_minus;
 use crate::evaluate::stats::{Cell, Significance};
+use crate::output::html_text::escape as esc;
 
 const W: f64 = 330.0;
 const H: f64 = 230.0;

@@ -7,10 +7,11 @@
 use std::fmt::Write;
 
 use super::csv::{HEADER, finish, records, writer};
-use super::html::{esc, page_start, plot_figures};
-use super::{LEGEND, confidence_text, svg};
+use super::html::{page_start, plot_figures};
+use super::{LEGEND, confidence_text, level_text, svg};
 use crate::evaluate::stats::Cell;
 use crate::evaluate::table::{Report, Table};
+use crate::output::html_text::escape as esc;
 
 /// One point of the summary: its report and where it stands.
 pub struct SummaryPoint<'a> {
@@ -184,7 +185,7 @@ fn series_plots(s: &mut String, points: &[&SummaryPoint], x_axis: &svg::XAxis) {
         let heading = tables
             .first()
             .and_then(|(t, _)| t.rows.get(level))
-            .map(|r| format!("{} level {}", tables[0].0.level_heading(), r.level_text()))
+            .map(|r| format!("{} level {}", tables[0].0.level_heading(), level_text(r)))
             .unwrap_or_default();
         let _ = writeln!(s, "<h3>{}</h3>", esc(&heading));
         for (table, threshold) in &tables {

@@ -1,11 +1,11 @@
-//! Triangulation of marker positions and rigid-body fits of marker sets (`rsa-methods.md` §4.1,
-//! items 5 and 6).
+//! Triangulation of points from rays and rigid-body fits of marker sets (`rsa-methods.md`
+//! §4.1, items 5 and 6): what the reference program, the migration analysis and the XMALab
+//! import all fit with.
 
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat3, DVec3};
 use nalgebra::{Matrix3, Vector3};
 
-use super::calibrate::Beamline;
-use crate::geometry::Pose;
+use super::Pose;
 
 /// Least-squares intersection of rays given as (origin, direction); directions need not be unit.
 ///
@@ -41,22 +41,6 @@ pub fn triangulate(rays: &[(DVec3, DVec3)]) -> (DVec3, f64) {
         (rays.iter().map(|r| dist(r).powi(2)).sum::<f64>() / scale).sqrt()
     };
     (x, error)
-}
-
-/// The ray from the beamline's source through continuous pixel `uv`: (origin = source, unit
-/// direction towards the pixel's world position on the detector plane).
-pub fn ray_through_pixel(
-    beamline: &Beamline,
-    pixels: [u32; 2],
-    pitch: [f64; 2],
-    uv: DVec2,
-) -> (DVec3, DVec3) {
-    let frame = beamline.frame(pixels, pitch);
-    let on_detector = frame.pose.to_world(frame.pixel_local(uv.x, uv.y));
-    (
-        beamline.source_mm,
-        (on_detector - beamline.source_mm).normalize(),
-    )
 }
 
 /// A rigid-body fit of a marker model to measured marker positions.
@@ -181,7 +165,7 @@ pub fn fit_rigid(model: &[DVec3], measured: &[DVec3]) -> Result<RigidFit, String
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reconstruct::calibrate::tests::{PITCH, PIXELS, beamline_1, beamline_2, gaussians};
+    use crate::random::gaussians;
 
     fn markers() -> Vec<DVec3> {
         vec![
@@ -215,22 +199,6 @@ mod tests {
         // Parallel rays: no point.
         let (x, e) = triangulate(&[(DVec3::ZERO, DVec3::X), (DVec3::Y, DVec3::X)]);
         assert!(x.x.is_nan() && e.is_infinite());
-    }
-
-    #[test]
-    fn rays_through_projected_pixels_meet_at_the_bead() {
-        let (b1, b2) = (beamline_1(), beamline_2());
-        let p = DVec3::new(23.0, -41.0, 17.0);
-        let r1 = ray_through_pixel(&b1, PIXELS, PITCH, b1.project(PIXELS, PITCH, p).unwrap());
-        let r2 = ray_through_pixel(&b2, PIXELS, PITCH, b2.project(PIXELS, PITCH, p).unwrap());
-        assert!((r1.1.length() - 1.0).abs() < 1e-12);
-        let (x, e) = triangulate(&[r1, r2]);
-        assert!((x - p).length() < 1e-9 && e < 1e-9);
-        // One pixel off in one view gives a crossing-line error of about a pixel pitch × (source-
-        // to-bead / source-to-detector) ≈ 0.2 mm.
-        let uv = b2.project(PIXELS, PITCH, p).unwrap() + DVec2::new(0.0, 1.0);
-        let (_, e) = triangulate(&[r1, ray_through_pixel(&b2, PIXELS, PITCH, uv)]);
-        assert!(e > 0.1 && e < 0.3, "{e}");
     }
 
     #[test]
