@@ -217,6 +217,7 @@ pub fn export(
     if let Some(t) = truth_dir {
         refuse_inside(t, dest)?;
     }
+    check_images(&runs)?;
     refuse_inside(out, dest)?;
     let target =
         OutputTarget::claim(dest, FolderKind::Export).map_err(|d| Error::Input(vec![*d]))?;
@@ -245,6 +246,44 @@ pub fn export(
         dir: committed.path,
         notes,
     })
+}
+
+/// Decodes every image of every run once before anything is written, so that an unreadable
+/// image, or one whose size is not its detector's, is an input error (exit 2) with nothing
+/// written, not even the export folder's lock. The pixels are decoded again when written: the
+/// export is not worth holding every image in memory.
+fn check_images(runs: &[RunExport]) -> Result<(), Error> {
+    for run in runs {
+        for image in &run.truth.images {
+            let stem = format!("{}-{}", image.exposure, image.detector);
+            let det = run
+                .truth
+                .run
+                .detectors
+                .iter()
+                .find(|d| d.id == image.detector)
+                .ok_or_else(|| {
+                    Error::Input(vec![Diagnostic::file_error(
+                        &run.dir.join("truth.json"),
+                        format!("image `{stem}` names an unknown detector"),
+                    )])
+                })?;
+            let (w, h, _) = read_image(&run.dir, &stem).map_err(|e| {
+                Error::Input(vec![Diagnostic::file_error(&run.dir, format!("cannot read the image: {e}"))
+                    .with_help("export reads the TIFF (or EXR) images of every run; give a folder written with them")])
+            })?;
+            if [w, h] != det.pixels {
+                return Err(Error::Input(vec![Diagnostic::file_error(
+                    &run.dir,
+                    format!(
+                        "image `{stem}` is {w} × {h} pixels, but truth.json gives detector `{}` {} × {}",
+                        image.detector, det.pixels[0], det.pixels[1]
+                    ),
+                )]));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Refuses an export folder inside the output folder (it would add files the manifest does not

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use super::atomic::write_staged;
 use super::commit::{FolderKind, OutputTarget};
 use super::manifest::{Manifest, ManifestFile, ShardRecord};
-use super::verify::{sha256_file, verify_listing};
+use super::verify::{sha256_file, verify_folder};
 use crate::diagnostic::Diagnostic;
 use crate::shard::{ShardSpec, runs_of_shard};
 
@@ -112,9 +112,12 @@ fn listed(items: &[String], limit: usize) -> String {
     text
 }
 
-/// Reads one shard folder: its manifest verified (without contents) and its shard record.
+/// Reads one shard folder: its manifest and every file it lists verified, and its shard record.
 fn read_shard(dir: &Path, not_merged: &mut Vec<String>) -> Result<Shard, Vec<Diagnostic>> {
-    let v = verify_listing(dir);
+    // Every file hashed here, before the merged folder is claimed, so that a changed file is an
+    // error (exit 2) with nothing written, not even a lock; assembling hashes each placed file
+    // again, which catches a file changed in between.
+    let v = verify_folder(dir);
     if !v.ok() {
         return Err(v
             .problems

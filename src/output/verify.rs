@@ -272,13 +272,6 @@ pub fn verify_folder(dir: &Path) -> Verification {
     verify_folder_as(dir, true)
 }
 
-/// [`verify_folder`] without reading the listed files' contents: the manifest's own hash, every
-/// listed file present as a regular file of the recorded size, no unlisted file in rsasim's
-/// places. For `rsasim merge`, which hashes each file once as it places it.
-pub fn verify_listing(dir: &Path) -> Verification {
-    verify_folder_as(dir, false)
-}
-
 fn verify_folder_as(dir: &Path, content: bool) -> Verification {
     let mut v = Verification {
         folder: dir.to_path_buf(),

@@ -187,6 +187,21 @@ pub fn read_index(dir: &Path) -> Result<Index, Vec<Diagnostic>> {
             )
             .with_help("a sweep folder is written by `rsasim sweep FILE --out DIR`: ask the sender for the folder as rsasim wrote it")]);
         }
+        if point.values.len() != index.parameters.len()
+            || point.axis.len() != index.parameters.len()
+        {
+            return Err(vec![Diagnostic::file_error(
+                &path,
+                format!(
+                    "point {}: `values` has {} and `axis` {} entries for the {} parameters",
+                    point.id,
+                    point.values.len(),
+                    point.axis.len(),
+                    index.parameters.len()
+                ),
+            )
+            .with_help("a sweep folder is written by `rsasim sweep FILE --out DIR`: ask the sender for the folder as rsasim wrote it")]);
+        }
         if point.scenario != format!("{POINTS_DIR}/{}.toml", point.id) {
             return Err(vec![Diagnostic::file_error(
                 &path,
