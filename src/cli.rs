@@ -1,10 +1,12 @@
-//! Command-line arguments. `main` only parses these and dispatches to the library.
+//! Command-line arguments: one struct per subcommand, read by its module under `commands/`, and
+//! every enumerated flag a typed value ([`ValueEnum`]) mapped to the library's own type.
 
+use std::ffi::OsStr;
 use std::path::PathBuf;
 
-use clap::builder::{PossibleValuesParser, RangedU64ValueParser, TypedValueParser};
-use clap::{Args, Parser, Subcommand};
-use rsasim::reconstruct::{Method, ModelMethod};
+use clap::builder::{RangedU64ValueParser, StringValueParser, TypedValueParser};
+use clap::error::ErrorKind;
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use rsasim::shard::ShardRequest;
 
 /// rsasim: simulate Radio Stereometric Analysis X-ray scenes with known ground truth.
@@ -54,8 +56,8 @@ pub struct RunArgs {
     /// Also write a picture of every image for people: `png` puts `<exposure>-<detector>.png`
     /// (8-bit, windowed to the 0.5–99.5th percentile, at most 1024 px on its longer side) beside
     /// each image, listed in the manifest. Previews are never evidence: score the TIFF/EXR.
-    #[arg(long, value_name = "FORMAT", value_parser = ["png"])]
-    pub preview: Option<String>,
+    #[arg(long, value_name = "FORMAT")]
+    pub preview: Option<Preview>,
     /// Write only shard K of N (K from 0 to N − 1, as Kubernetes' JOB_COMPLETION_INDEX and
     /// `sbatch --array=0-3` count) into OUT/shard-K-of-N/ with its own manifest: the runs at
     /// positions K, K + N, K + 2N, … of the protocol, byte for byte as a run without --shard
@@ -75,7 +77,7 @@ pub struct RunArgs {
 }
 
 /// Flags that widen what a scenario may read and use (run, validate, expand).
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub struct AllowArgs {
     /// A folder, besides the scenario file's own, that mesh files and the glTF buffers and
     /// images they reference may be read from (repeatable). Nothing outside is read.
@@ -106,212 +108,45 @@ pub const DEFAULT_FORMATS: &str = "md,csv,tex,html";
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Check a scenario (syntax, values, mesh files, geometry of every run) and write nothing.
-    Validate {
-        /// The scenario file to check.
-        scenario: PathBuf,
-        /// What the scenario may read and use beyond the defaults.
-        #[command(flatten)]
-        allow: AllowArgs,
-    },
+    Validate(ValidateArgs),
     /// Print every concrete run (poses, seeds, noise level) as JSON, in the box frame.
-    Expand {
-        /// The scenario file to expand.
-        scenario: PathBuf,
-        /// What the scenario may read and use beyond the defaults.
-        #[command(flatten)]
-        allow: AllowArgs,
-    },
+    Expand(ExpandArgs),
     /// Write one self-contained HTML page that shows the scenario in 3D before it is run: sources,
     /// detectors, calibration box, meshes and beads of the first run (drag to turn), each
     /// object's random range as a shaded box, the beam cones, the first run's images as
     /// thumbnails and the check's warnings placed on the objects. Not the run option
     /// `--preview png`, which writes a PNG beside every image of a run.
-    Scene {
-        /// The scenario file to show.
-        scenario: PathBuf,
-        /// The page file. Default: out/<scenario name>-scene.html. An existing file is
-        /// replaced only when it is an earlier page of `rsasim scene`.
-        #[arg(long, value_name = "FILE")]
-        out: Option<PathBuf>,
-        /// Leave out the thumbnails of the first run's images (making them simulates that run
-        /// in a temporary folder).
-        #[arg(long)]
-        no_images: bool,
-        /// What the scenario may read and use beyond the defaults.
-        #[command(flatten)]
-        allow: AllowArgs,
-    },
+    Scene(SceneArgs),
     /// Score a software's results against the truth by ISO 5725 (trueness ± precision) and write
     /// the paper's tables as Markdown, CSV, LaTeX and a self-contained HTML report. On a sweep
     /// folder: every point's report, then the sweep's summary (sweep_summary.csv and
     /// sweep_summary.html in DIR/sweep-report/, or --report).
-    Evaluate {
-        /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/), or
-        /// a sweep folder (it holds sweep.json).
-        out: PathBuf,
-        /// File name of the results in every run folder (schemas/measured.schema.json). Default:
-        /// measured.json if present, else the one measured*.json name the run folders hold
-        /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them. A
-        /// name ending in .csv is read as XMALab's export of that run's trial: rigid-body
-        /// transformations (bodies named after phantoms), 3D points or 2D points (markers named
-        /// after beads; 2D points are triangulated with the exported true cameras).
-        #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
-        measured: Option<String>,
-        /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
-        /// the folder `rsasim export` wrote, where XMALab's exports were saved.
-        #[arg(long, value_name = "DIR", requires = "measured")]
-        results_in: Option<PathBuf>,
-        /// Read every run's results from one CSV long table instead (columns in the README).
-        #[arg(long, value_name = "FILE")]
-        csv: Option<PathBuf>,
-        /// Confidence level of τ, in (0, 1).
-        #[arg(long, default_value_t = DEFAULT_CONFIDENCE, value_name = "LEVEL")]
-        confidence: f64,
-        /// One- or two-sided τ; the paper's τ = 1.73 at N = 20 is one-sided 95 %.
-        #[arg(long, default_value = "one", value_parser = ["one", "two"])]
-        sided: String,
-        /// Report formats, comma-separated: md, csv, tex, html, pdf. pdf prints the HTML report
-        /// with a headless browser: $RSASIM_BROWSER, else chromium, chromium-browser or
-        /// google-chrome on PATH (none found: exit 2 before anything is written).
-        #[arg(
-            long,
-            default_value = DEFAULT_FORMATS,
-            value_delimiter = ',',
-            value_name = "LIST"
-        )]
-        format: Vec<String>,
-        /// The MTPM each model's MTPM cells are compared with, in mm: a cell whose upper end
-        /// T + P exceeds it is marked. Default 0.2 (continuous migration of a knee prosthesis
-        /// between one and two years that predicts loosening).
-        #[arg(long, default_value_t = rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM, value_name = "MM")]
-        mtpm_threshold_mm: f64,
-        /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
-        /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
-        /// On a sweep folder: the summary's folder (default DIR/sweep-report).
-        #[arg(long, value_name = "DIR")]
-        report: Option<PathBuf>,
-        /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
-        /// is then its images folder. Both manifests and the binding between them are verified.
-        #[arg(long, value_name = "DIR")]
-        truth: Option<PathBuf>,
-        /// Clinical studies: a CSV of relative motions per patient, follow-up exam and implant
-        /// segment (header patient,exam,segment,tx_mm,ty_mm,tz_mm,rx_deg,ry_deg,rz_deg,mtpm_mm)
-        /// to score instead of the per-exam results.
-        #[arg(long, value_name = "FILE")]
-        migration_csv: Option<PathBuf>,
-        /// Clinical studies: a marker whose leave-one-out residual between exams exceeds this
-        /// (mm) is loose: excluded when the migration is computed from per-exam results, and the
-        /// loose-marker table lists the markers that truly moved more. Default 0.3.
-        #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
-        stability_threshold_mm: f64,
-        /// Clinical studies: also report the 99 % double-exam limits (mean ± 2.576·SD and
-        /// t(0.995, n−1)·SD).
-        #[arg(long)]
-        limits_99: bool,
-    },
+    Evaluate(EvaluateArgs),
     /// Check an output folder against its manifest.json: every listed file present, a regular
     /// file, of the recorded size and SHA-256; the manifest's own hash; files present but not
     /// listed. Prints one line per problem and a summary; exit 0 when everything verifies, 2 when
     /// anything does not. Given a truth folder of the blind layout, it also checks the images
     /// folder bound to it (found beside it, or given with --images).
-    Verify {
-        /// The output folder (or truth folder) to check.
-        out: PathBuf,
-        /// The images folder bound to the truth folder OUT, when it is not beside it under the
-        /// name it was written with.
-        #[arg(long, value_name = "DIR")]
-        images: Option<PathBuf>,
-    },
+    Verify(VerifyArgs),
     /// Run rsasim's reference RSA program on an output folder: calibrate every beamline from the
     /// box beads, find each model from its beads, and write
     /// measured-rsasim-<calibration>-<model>.json into every run folder (never over another
     /// software's results). It reads only what a real RSA program has: images, nominal set-up,
     /// phantoms/ (never truth.json). On a sweep folder: every point's output folder in turn.
-    Reconstruct {
-        /// The output folder of a simulation, or a sweep folder.
-        out: PathBuf,
-        /// How each beamline is calibrated from the box beads. dlt: normalised DLT on both facing
-        /// plates, decomposition with the known pixel pitch, joint Levenberg–Marquardt fit of
-        /// source and detector. selvik: the classic cage method (homography from the fiducial
-        /// plate, focus from the control plate; not statistically optimal), for comparison.
-        #[arg(long, default_value = "dlt", value_parser = method_parser())]
-        method: Method,
-        /// How each model's pose is found. markers: marker-based RSA (triangulate the model's
-        /// beads in two views, fit its bead table). silhouette: model-based RSA (fit the model
-        /// mesh's projected outline to the edges of its shadow in every view; no beads needed).
-        /// Default: markers for a model with beads, silhouette for a model without.
-        #[arg(long, value_name = "METHOD", value_parser = model_method_parser())]
-        model_method: Option<ModelMethod>,
-        /// File name of the results in every run folder. Default:
-        /// measured-rsasim-<calibration>-<model>.json, e.g. measured-rsasim-dlt-markers.json
-        /// (`auto` for the model part when models use different methods by default).
-        #[arg(long, value_name = "FILE_NAME")]
-        measured: Option<String>,
-        /// Replace a results file of that name even if another software wrote it (or it does not
-        /// parse). rsasim's own earlier results are always replaced.
-        #[arg(long)]
-        overwrite: bool,
-        /// Clinical studies (OUT holds study.json): a marker whose leave-one-out residual in the
-        /// fit between an exam and the reference exam exceeds this (mm) is loose and excluded from
-        /// the migration. Default 0.3.
-        #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
-        stability_threshold_mm: f64,
-    },
+    Reconstruct(ReconstructArgs),
     /// Write an output folder as the files XMALab or Autoscoper open, with the exam's known
     /// calibration: per run, a MayaCam 2.0 camera per detector (and DLT-11 coefficients, the box as
     /// XMALab's calibration object and the model beads' reference coordinates for XMALab; a trial
     /// `.cfg` per exposure for Autoscoper), the images as 16-bit TIFF sequences and the model
     /// meshes (OBJ for XMALab, STL for Autoscoper). DEST must be a new folder; it is written
     /// completely or not at all, and never inside OUT.
-    Export {
-        /// The output folder of a simulation (the ordinary layout, with truth.json in every run),
-        /// or the images folder of a blind layout together with --truth.
-        out: PathBuf,
-        /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
-        /// is then its images folder. Both manifests and the binding between them are verified.
-        #[arg(long, value_name = "DIR")]
-        truth: Option<PathBuf>,
-        /// The program to export for.
-        #[arg(long, value_parser = ["xmalab", "autoscoper"])]
-        to: String,
-        /// The new folder to write (one sub-folder per run).
-        #[arg(long, value_name = "DEST")]
-        dir: PathBuf,
-        /// Export only this run (repeatable), e.g. --run n0-r00. Default: every run.
-        #[arg(long = "run", value_name = "RUN_ID")]
-        runs: Vec<String>,
-        /// Write I_max − value, so that beads and implants are dark on a bright background as in
-        /// fluoroscopy (binary-mode images have them bright).
-        #[arg(long)]
-        invert: bool,
-        /// Cameras from the calibration a software measured (sources and detector poses of this
-        /// results file in every run folder, e.g. measured-rsasim-dlt-markers.json) instead of
-        /// the true calibration.
-        #[arg(long, value_name = "FILE_NAME")]
-        calibration_from: Option<String>,
-    },
+    Export(ExportArgs),
     /// Join the shard folders of one scenario (written by `rsasim SCENARIO --shard K/N`) into
     /// one output folder, byte for byte the folder a run without --shard writes. Every shard is
     /// checked first: its manifest's own hash, the same scenario, seed, build and number of
     /// shards, no shard missing or given twice, no file added or changed (every file's SHA-256
     /// is checked as it is placed); any problem is an error (exit 2) and nothing is written.
-    Merge {
-        /// Every shard folder (all N, any order), e.g. out/knee-shards/shard-*.
-        #[arg(required = true, value_name = "SHARD_DIR")]
-        shards: Vec<PathBuf>,
-        /// The merged output folder. Written like a run's output: staged beside it, swapped in
-        /// when complete, under the same lock.
-        #[arg(long, value_name = "DIR")]
-        out: PathBuf,
-        /// Replace OUT if it is an earlier rsasim output (the rules of a run's --force).
-        #[arg(long)]
-        force: bool,
-        /// Copy the files. Default: hard-link them (no time, no space; the shard and the merged
-        /// folder then share each file's bytes, which rsasim never changes in place), copying
-        /// only where a link is impossible (another file system).
-        #[arg(long)]
-        copy: bool,
-    },
+    Merge(MergeArgs),
     /// Run a parameter sweep: expand the sweep file (a base scenario and the values of some of its
     /// keys, as a grid or zipped) into one standalone scenario per point, check them all, write
     /// them into DIR/points/ and run each into DIR/<point id>/ as `rsasim POINT.toml --out
@@ -319,79 +154,480 @@ pub enum Command {
     /// unless the sweep varies `seed`. Run again on the same DIR, a stopped sweep resumes: complete
     /// points are kept, missing ones run. On a cluster: one `--shard K/N` task per shard, then
     /// `--merge`.
-    Sweep {
-        /// The sweep file (TOML), e.g. scenarios/sweeps/tube_angle.toml.
-        file: PathBuf,
-        /// The sweep folder: new or empty, or the folder of an earlier run of the same sweep.
-        #[arg(long, value_name = "DIR")]
-        out: PathBuf,
-        /// Then run the reference program (`rsasim reconstruct`, default methods) on every point
-        /// and `rsasim evaluate DIR`: each point's report and the sweep's summary in
-        /// DIR/sweep-report/ (sweep_summary.csv, sweep_summary.html).
-        #[arg(long, conflicts_with = "no_run")]
-        evaluate: bool,
-        /// Write the sweep folder's point scenarios and index, and run nothing: e.g. to run each
-        /// point as its own cluster job (`rsasim DIR/points/<id>.toml --out DIR/<id>`). A later
-        /// `rsasim sweep` on the same folder runs only the points still missing.
-        #[arg(long)]
-        no_run: bool,
-        /// Write only task K of N of the sweep (K from 0 to N − 1): one shard of every point, into
-        /// DIR/shards/<point id>/shard-j-of-N/, byte for byte as `rsasim DIR/points/<point
-        /// id>.toml --shard j/N` writes it. The tasks deal the runs of all points in sweep order
-        /// round robin (run g of the whole sweep to task g mod N), so task K writes shard
-        /// j = (K − runs before the point) mod N of each point. The tasks may run at once into one
-        /// DIR on a shared file system: the sweep's own files are written once and checked by the
-        /// others, each shard folder has its own lock. `auto`: K and N from SLURM or Kubernetes,
-        /// as for a scenario's --shard. A finished shard is left as it is; a point already
-        /// complete in DIR/<point id> needs none. Then `--merge`.
-        #[arg(long, value_name = "K/N|auto", value_parser = ShardRequest::parse, conflicts_with_all = ["no_run", "evaluate", "merge"])]
-        shard: Option<ShardRequest>,
-        /// The number of shards N: for `--shard auto` in a Kubernetes Indexed Job (its
-        /// .spec.completions); with --merge, which split to merge when a point's shard folder
-        /// holds several.
-        #[arg(long, value_name = "N", value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
-        shard_count: Option<usize>,
-        /// Merge a sharded sweep: check every point's shards in DIR/shards/<point id>/ as
-        /// `rsasim merge` checks them (a missing shard names its point and runs; any problem:
-        /// exit 2, nothing written), then join each into DIR/<point id>/, byte for byte the
-        /// folder an unsharded sweep writes (files hard-linked). Points already complete are
-        /// kept. With --evaluate, then reconstruct and evaluate as an unsharded sweep.
-        #[arg(long, conflicts_with = "no_run")]
-        merge: bool,
-        /// What the base scenario may read and use beyond the defaults (--allow-large also lifts
-        /// the cap of 1000 points).
-        #[command(flatten)]
-        allow: AllowArgs,
-    },
+    Sweep(SweepArgs),
     /// Print a JSON Schema: scenario (default), truth, measured, manifest, study or migration_measured.
-    Schema {
-        /// Which schema to print.
-        #[arg(default_value = "scenario", value_parser = ["scenario", "truth", "measured", "manifest", "study", "migration_measured"])]
-        name: String,
-        /// Instead of printing, write every schema as <DIR>/<name>.schema.json.
-        #[arg(long, value_name = "DIR")]
-        write_dir: Option<PathBuf>,
-    },
+    Schema(SchemaArgs),
 }
 
-/// `markers` | `silhouette` → [`ModelMethod`], listing both in `--help`.
-fn model_method_parser() -> impl TypedValueParser<Value = ModelMethod> {
-    PossibleValuesParser::new(["markers", "silhouette"]).map(|s| {
-        if s == "silhouette" {
-            ModelMethod::Silhouette
-        } else {
-            ModelMethod::Markers
-        }
-    })
+/// Arguments of `rsasim validate`.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// The scenario file to check.
+    pub scenario: PathBuf,
+    /// What the scenario may read and use beyond the defaults.
+    #[command(flatten)]
+    pub allow: AllowArgs,
 }
 
-/// `dlt` | `selvik` → [`Method`], listing both in `--help`.
-fn method_parser() -> impl TypedValueParser<Value = Method> {
-    PossibleValuesParser::new(["dlt", "selvik"]).map(|s| {
-        if s == "selvik" {
-            Method::Selvik
-        } else {
-            Method::Dlt
+/// Arguments of `rsasim expand`.
+#[derive(Debug, Args)]
+pub struct ExpandArgs {
+    /// The scenario file to expand.
+    pub scenario: PathBuf,
+    /// What the scenario may read and use beyond the defaults.
+    #[command(flatten)]
+    pub allow: AllowArgs,
+}
+
+/// Arguments of `rsasim scene`.
+#[derive(Debug, Args)]
+pub struct SceneArgs {
+    /// The scenario file to show.
+    pub scenario: PathBuf,
+    /// The page file. Default: out/<scenario name>-scene.html. An existing file is
+    /// replaced only when it is an earlier page of `rsasim scene`.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Leave out the thumbnails of the first run's images (making them simulates that run
+    /// in a temporary folder).
+    #[arg(long)]
+    pub no_images: bool,
+    /// What the scenario may read and use beyond the defaults.
+    #[command(flatten)]
+    pub allow: AllowArgs,
+}
+
+/// Arguments of `rsasim evaluate`.
+#[derive(Debug, PartialEq, Args)]
+pub struct EvaluateArgs {
+    /// The output folder of a simulation (it holds manifest.json, scenario.toml and runs/), or
+    /// a sweep folder (it holds sweep.json).
+    pub out: PathBuf,
+    /// File name of the results in every run folder (schemas/measured.schema.json). Default:
+    /// measured.json if present, else the one measured*.json name the run folders hold
+    /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them. A
+    /// name ending in .csv is read as XMALab's export of that run's trial: rigid-body
+    /// transformations (bodies named after phantoms), 3D points or 2D points (markers named
+    /// after beads; 2D points are triangulated with the exported true cameras).
+    #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
+    pub measured: Option<String>,
+    /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
+    /// the folder `rsasim export` wrote, where XMALab's exports were saved.
+    #[arg(long, value_name = "DIR", requires = "measured")]
+    pub results_in: Option<PathBuf>,
+    /// Read every run's results from one CSV long table instead (columns in the README).
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Confidence level of τ, in (0, 1).
+    #[arg(long, default_value_t = DEFAULT_CONFIDENCE, value_name = "LEVEL")]
+    pub confidence: f64,
+    /// One- or two-sided τ; the paper's τ = 1.73 at N = 20 is one-sided 95 %.
+    #[arg(long, default_value = "one")]
+    pub sided: Sided,
+    /// Report formats, comma-separated: md, csv, tex, html, pdf. pdf prints the HTML report
+    /// with a headless browser: $RSASIM_BROWSER, else chromium, chromium-browser or
+    /// google-chrome on PATH (none found: exit 2 before anything is written).
+    #[arg(
+        long,
+        default_value = DEFAULT_FORMATS,
+        value_delimiter = ',',
+        value_name = "LIST",
+        value_parser = ReportFormatParser
+    )]
+    pub format: Vec<ReportFormat>,
+    /// The MTPM each model's MTPM cells are compared with, in mm: a cell whose upper end
+    /// T + P exceeds it is marked. Default 0.2 (continuous migration of a knee prosthesis
+    /// between one and two years that predicts loosening).
+    #[arg(long, default_value_t = rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM, value_name = "MM")]
+    pub mtpm_threshold_mm: f64,
+    /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
+    /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
+    /// On a sweep folder: the summary's folder (default DIR/sweep-report).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
+    /// is then its images folder. Both manifests and the binding between them are verified.
+    #[arg(long, value_name = "DIR")]
+    pub truth: Option<PathBuf>,
+    /// Clinical studies: a CSV of relative motions per patient, follow-up exam and implant
+    /// segment (header patient,exam,segment,tx_mm,ty_mm,tz_mm,rx_deg,ry_deg,rz_deg,mtpm_mm)
+    /// to score instead of the per-exam results.
+    #[arg(long, value_name = "FILE")]
+    pub migration_csv: Option<PathBuf>,
+    /// Clinical studies: a marker whose leave-one-out residual between exams exceeds this
+    /// (mm) is loose: excluded when the migration is computed from per-exam results, and the
+    /// loose-marker table lists the markers that truly moved more. Default 0.3.
+    #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
+    pub stability_threshold_mm: f64,
+    /// Clinical studies: also report the 99 % double-exam limits (mean ± 2.576·SD and
+    /// t(0.995, n−1)·SD).
+    #[arg(long)]
+    pub limits_99: bool,
+}
+
+/// Arguments of `rsasim verify`.
+#[derive(Debug, Args)]
+pub struct VerifyArgs {
+    /// The output folder (or truth folder) to check.
+    pub out: PathBuf,
+    /// The images folder bound to the truth folder OUT, when it is not beside it under the
+    /// name it was written with.
+    #[arg(long, value_name = "DIR")]
+    pub images: Option<PathBuf>,
+}
+
+/// Arguments of `rsasim reconstruct`.
+#[derive(Debug, Args)]
+pub struct ReconstructArgs {
+    /// The output folder of a simulation, or a sweep folder.
+    pub out: PathBuf,
+    /// How each beamline is calibrated from the box beads. dlt: normalised DLT on both facing
+    /// plates, decomposition with the known pixel pitch, joint Levenberg–Marquardt fit of
+    /// source and detector. selvik: the classic cage method (homography from the fiducial
+    /// plate, focus from the control plate; not statistically optimal), for comparison.
+    #[arg(long, default_value = "dlt")]
+    pub method: Calibration,
+    /// How each model's pose is found. markers: marker-based RSA (triangulate the model's
+    /// beads in two views, fit its bead table). silhouette: model-based RSA (fit the model
+    /// mesh's projected outline to the edges of its shadow in every view; no beads needed).
+    /// Default: markers for a model with beads, silhouette for a model without.
+    #[arg(long, value_name = "METHOD")]
+    pub model_method: Option<ModelMethod>,
+    /// File name of the results in every run folder. Default:
+    /// measured-rsasim-<calibration>-<model>.json, e.g. measured-rsasim-dlt-markers.json
+    /// (`auto` for the model part when models use different methods by default).
+    #[arg(long, value_name = "FILE_NAME")]
+    pub measured: Option<String>,
+    /// Replace a results file of that name even if another software wrote it (or it does not
+    /// parse). rsasim's own earlier results are always replaced.
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Clinical studies (OUT holds study.json): a marker whose leave-one-out residual in the
+    /// fit between an exam and the reference exam exceeds this (mm) is loose and excluded from
+    /// the migration. Default 0.3.
+    #[arg(long, default_value_t = rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM, value_name = "MM")]
+    pub stability_threshold_mm: f64,
+}
+
+/// Arguments of `rsasim export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// The output folder of a simulation (the ordinary layout, with truth.json in every run),
+    /// or the images folder of a blind layout together with --truth.
+    pub out: PathBuf,
+    /// The truth folder of a blind layout (written by `rsasim SCENARIO --truth-dir DIR`); OUT
+    /// is then its images folder. Both manifests and the binding between them are verified.
+    #[arg(long, value_name = "DIR")]
+    pub truth: Option<PathBuf>,
+    /// The program to export for.
+    #[arg(long)]
+    pub to: ExportTarget,
+    /// The new folder to write (one sub-folder per run).
+    #[arg(long, value_name = "DEST")]
+    pub dir: PathBuf,
+    /// Export only this run (repeatable), e.g. --run n0-r00. Default: every run.
+    #[arg(long = "run", value_name = "RUN_ID")]
+    pub runs: Vec<String>,
+    /// Write I_max − value, so that beads and implants are dark on a bright background as in
+    /// fluoroscopy (binary-mode images have them bright).
+    #[arg(long)]
+    pub invert: bool,
+    /// Cameras from the calibration a software measured (sources and detector poses of this
+    /// results file in every run folder, e.g. measured-rsasim-dlt-markers.json) instead of
+    /// the true calibration.
+    #[arg(long, value_name = "FILE_NAME")]
+    pub calibration_from: Option<String>,
+}
+
+/// Arguments of `rsasim merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Every shard folder (all N, any order), e.g. out/knee-shards/shard-*.
+    #[arg(required = true, value_name = "SHARD_DIR")]
+    pub shards: Vec<PathBuf>,
+    /// The merged output folder. Written like a run's output: staged beside it, swapped in
+    /// when complete, under the same lock.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Replace OUT if it is an earlier rsasim output (the rules of a run's --force).
+    #[arg(long)]
+    pub force: bool,
+    /// Copy the files. Default: hard-link them (no time, no space; the shard and the merged
+    /// folder then share each file's bytes, which rsasim never changes in place), copying
+    /// only where a link is impossible (another file system).
+    #[arg(long)]
+    pub copy: bool,
+}
+
+/// Arguments of `rsasim sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// The sweep file (TOML), e.g. scenarios/sweeps/tube_angle.toml.
+    pub file: PathBuf,
+    /// The sweep folder: new or empty, or the folder of an earlier run of the same sweep.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Then run the reference program (`rsasim reconstruct`, default methods) on every point
+    /// and `rsasim evaluate DIR`: each point's report and the sweep's summary in
+    /// DIR/sweep-report/ (sweep_summary.csv, sweep_summary.html).
+    #[arg(long, conflicts_with = "no_run")]
+    pub evaluate: bool,
+    /// Write the sweep folder's point scenarios and index, and run nothing: e.g. to run each
+    /// point as its own cluster job (`rsasim DIR/points/<id>.toml --out DIR/<id>`). A later
+    /// `rsasim sweep` on the same folder runs only the points still missing.
+    #[arg(long)]
+    pub no_run: bool,
+    /// Write only task K of N of the sweep (K from 0 to N − 1): one shard of every point, into
+    /// DIR/shards/<point id>/shard-j-of-N/, byte for byte as `rsasim DIR/points/<point
+    /// id>.toml --shard j/N` writes it. The tasks deal the runs of all points in sweep order
+    /// round robin (run g of the whole sweep to task g mod N), so task K writes shard
+    /// j = (K − runs before the point) mod N of each point. The tasks may run at once into one
+    /// DIR on a shared file system: the sweep's own files are written once and checked by the
+    /// others, each shard folder has its own lock. `auto`: K and N from SLURM or Kubernetes,
+    /// as for a scenario's --shard. A finished shard is left as it is; a point already
+    /// complete in DIR/<point id> needs none. Then `--merge`.
+    #[arg(long, value_name = "K/N|auto", value_parser = ShardRequest::parse, conflicts_with_all = ["no_run", "evaluate", "merge"])]
+    pub shard: Option<ShardRequest>,
+    /// The number of shards N: for `--shard auto` in a Kubernetes Indexed Job (its
+    /// .spec.completions); with --merge, which split to merge when a point's shard folder
+    /// holds several.
+    #[arg(long, value_name = "N", value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+    pub shard_count: Option<usize>,
+    /// Merge a sharded sweep: check every point's shards in DIR/shards/<point id>/ as
+    /// `rsasim merge` checks them (a missing shard names its point and runs; any problem:
+    /// exit 2, nothing written), then join each into DIR/<point id>/, byte for byte the
+    /// folder an unsharded sweep writes (files hard-linked). Points already complete are
+    /// kept. With --evaluate, then reconstruct and evaluate as an unsharded sweep.
+    #[arg(long, conflicts_with = "no_run")]
+    pub merge: bool,
+    /// What the base scenario may read and use beyond the defaults (--allow-large also lifts
+    /// the cap of 1000 points).
+    #[command(flatten)]
+    pub allow: AllowArgs,
+}
+
+/// Arguments of `rsasim schema`.
+#[derive(Debug, Args)]
+pub struct SchemaArgs {
+    /// Which schema to print.
+    #[arg(default_value = "scenario")]
+    pub name: SchemaName,
+    /// Instead of printing, write every schema as <DIR>/<name>.schema.json.
+    #[arg(long, value_name = "DIR")]
+    pub write_dir: Option<PathBuf>,
+}
+
+impl EvaluateArgs {
+    /// `rsasim evaluate OUT` with every option at its default: what `rsasim sweep --evaluate`
+    /// runs on the sweep folder.
+    pub fn defaults(out: PathBuf) -> Self {
+        EvaluateArgs {
+            out,
+            measured: None,
+            results_in: None,
+            csv: None,
+            confidence: DEFAULT_CONFIDENCE,
+            sided: Sided::One,
+            format: DEFAULT_FORMATS
+                .split(',')
+                .map(|f| ReportFormat::from_str(f, false).expect("a default format"))
+                .collect(),
+            mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+            report: None,
+            truth: None,
+            migration_csv: None,
+            stability_threshold_mm: rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM,
+            limits_99: false,
         }
-    })
+    }
+}
+
+// The enumerated flags. Their variants carry no doc comment: clap would show it in `--help`.
+
+/// `--preview`: the picture written beside every image (only `png`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Preview {
+    Png,
+}
+
+/// `evaluate --sided`: one- or two-sided τ ([`rsasim::evaluate::stats::Sided`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Sided {
+    One,
+    Two,
+}
+
+impl From<Sided> for rsasim::evaluate::stats::Sided {
+    fn from(s: Sided) -> Self {
+        match s {
+            Sided::One => Self::One,
+            Sided::Two => Self::Two,
+        }
+    }
+}
+
+/// `evaluate --format`: one report format ([`rsasim::evaluate::report::Format`]), spelled `md`
+/// (or `markdown`), `csv`, `tex` (or `latex`), `html` or `pdf`, in any case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ReportFormat {
+    #[value(name = "md", alias = "markdown")]
+    Markdown,
+    Csv,
+    #[value(name = "tex", alias = "latex")]
+    Latex,
+    Html,
+    Pdf,
+}
+
+impl From<ReportFormat> for rsasim::evaluate::report::Format {
+    fn from(f: ReportFormat) -> Self {
+        match f {
+            ReportFormat::Markdown => Self::Markdown,
+            ReportFormat::Csv => Self::Csv,
+            ReportFormat::Latex => Self::Latex,
+            ReportFormat::Html => Self::Html,
+            ReportFormat::Pdf => Self::Pdf,
+        }
+    }
+}
+
+/// `--format`'s parser: each name of the list trimmed and in any case (`md, HTML` is `md,html`);
+/// any other name is refused with the library's message and nothing else (exit 2).
+#[derive(Debug, Clone, Copy)]
+struct ReportFormatParser;
+
+impl TypedValueParser for ReportFormatParser {
+    type Value = ReportFormat;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &OsStr,
+    ) -> Result<ReportFormat, clap::Error> {
+        let name = StringValueParser::new().parse_ref(cmd, arg, value)?;
+        ReportFormat::from_str(name.trim(), true).map_err(|_| {
+            let why = rsasim::evaluate::report::ParseFormatError(name);
+            // A raw message is printed as `error: <message>`, without clap's usage lines.
+            clap::Error::raw(ErrorKind::InvalidValue, format!("--format: {why}\n"))
+        })
+    }
+}
+
+/// `reconstruct --method`: how each beamline is calibrated ([`rsasim::reconstruct::Method`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Calibration {
+    Dlt,
+    Selvik,
+}
+
+impl From<Calibration> for rsasim::reconstruct::Method {
+    fn from(m: Calibration) -> Self {
+        match m {
+            Calibration::Dlt => Self::Dlt,
+            Calibration::Selvik => Self::Selvik,
+        }
+    }
+}
+
+/// `reconstruct --model-method`: how each model's pose is found
+/// ([`rsasim::reconstruct::ModelMethod`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelMethod {
+    Markers,
+    Silhouette,
+}
+
+impl From<ModelMethod> for rsasim::reconstruct::ModelMethod {
+    fn from(m: ModelMethod) -> Self {
+        match m {
+            ModelMethod::Markers => Self::Markers,
+            ModelMethod::Silhouette => Self::Silhouette,
+        }
+    }
+}
+
+/// `export --to`: the program exported for ([`rsasim::interop::export::Target`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExportTarget {
+    Xmalab,
+    Autoscoper,
+}
+
+impl From<ExportTarget> for rsasim::interop::export::Target {
+    fn from(t: ExportTarget) -> Self {
+        match t {
+            ExportTarget::Xmalab => Self::Xmalab,
+            ExportTarget::Autoscoper => Self::Autoscoper,
+        }
+    }
+}
+
+/// `schema NAME`: one of the schemas of [`rsasim::output::schemas`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SchemaName {
+    Scenario,
+    Truth,
+    Measured,
+    Manifest,
+    Study,
+    #[value(name = "migration_measured")]
+    MigrationMeasured,
+}
+
+impl SchemaName {
+    /// The name [`rsasim::output::schemas`] lists it under: its name on the command line.
+    pub fn name(self) -> String {
+        let value = self.to_possible_value().expect("no name is skipped");
+        value.get_name().to_owned()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::*;
+
+    #[test]
+    fn the_arguments_are_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn evaluate_defaults_are_those_of_the_command_line() {
+        let parsed = Cli::try_parse_from(["rsasim", "evaluate", "some/out"]).unwrap();
+        let Some(Command::Evaluate(args)) = parsed.command else {
+            panic!("not evaluate: {parsed:?}")
+        };
+        assert_eq!(args, EvaluateArgs::defaults(PathBuf::from("some/out")));
+    }
+
+    #[test]
+    fn every_schema_name_is_a_schema() {
+        let schemas: Vec<&str> = rsasim::output::schemas().iter().map(|(n, _)| *n).collect();
+        let names: Vec<String> = SchemaName::value_variants()
+            .iter()
+            .map(|s| s.name())
+            .collect();
+        assert_eq!(names, schemas);
+    }
+
+    #[test]
+    fn report_formats_are_read_as_the_library_reads_them() {
+        use rsasim::evaluate::report::Format;
+        let cmd = Cli::command();
+        for name in [
+            "md", "Markdown", " html", "LaTeX", "tex", "csv", "PDF", "docx", "",
+        ] {
+            let ours = ReportFormatParser
+                .parse_ref(&cmd, None, OsStr::new(name))
+                .map(Format::from)
+                .map_err(|e| e.to_string());
+            let theirs = name
+                .parse::<Format>()
+                .map_err(|e| format!("error: --format: {e}\n"));
+            assert_eq!(ours, theirs, "{name:?}");
+        }
+    }
 }

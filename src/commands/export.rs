@@ -1,0 +1,42 @@
+//! `rsasim export`: an output folder as the files XMALab or Autoscoper open.
+
+use std::time::Instant;
+
+use rsasim::interop::export::{self, Error, Options};
+
+use super::Outcome;
+use super::shared::report_errors;
+use crate::cli::ExportArgs;
+
+/// Exports (errors in the input: exit 2, nothing written; a failure while writing: exit 1).
+pub fn execute(args: ExportArgs) -> Outcome {
+    let options = Options {
+        target: args.to.into(),
+        runs: args.runs,
+        invert: args.invert,
+        calibration_from: args.calibration_from,
+    };
+    let dir = &args.dir;
+    let start = Instant::now();
+    let summary =
+        export::export(&args.out, args.truth.as_deref(), dir, &options).map_err(|e| match e {
+            Error::Input(errors) => report_errors(&errors),
+            Error::Write(why) => {
+                eprintln!(
+                    "error: writing {} failed: {why}\n  = note: nothing was written there",
+                    dir.display()
+                );
+                1
+            }
+        })?;
+    summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    eprintln!(
+        "rsasim export: {} run(s), {} files for {} in {:.1} s -> {}",
+        summary.runs,
+        summary.files,
+        options.target.name(),
+        start.elapsed().as_secs_f64(),
+        summary.dir.display()
+    );
+    Ok(())
+}
