@@ -1,5 +1,5 @@
 //! `rsasim evaluate`: score a software's results and write the reports (on a sweep folder: every
-//! point's, then the summary, by [`super::sweep::evaluate_sweep`]).
+//! point's, then the summary, by [`evaluate_sweep`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -86,7 +86,7 @@ pub fn execute(args: EvaluateArgs) -> Outcome {
     };
     let (out, truth) = (args.out.as_path(), args.truth.as_deref());
     if rsasim::sweep::is_sweep_folder(out) {
-        return super::sweep::evaluate_sweep(out, truth, &options, &reports);
+        return evaluate_sweep(out, truth, &options, &reports);
     }
     let start = Instant::now();
     let result = score(out, truth, &options)?;
@@ -135,6 +135,77 @@ pub fn write_report(
         "rsasim evaluate: {} runs scored, {} exclusion(s), in {:.2} s -> {}",
         result.runs_scored,
         result.excluded.len(),
+        start.elapsed().as_secs_f64(),
+        shown(&written)
+    );
+    Ok(())
+}
+
+/// `rsasim evaluate` on a sweep folder: scores every point (nothing written), claims every
+/// point's report folder and the summary's, then writes the point reports and the summary.
+pub fn evaluate_sweep(
+    dir: &Path,
+    truth: Option<&Path>,
+    options: &Options,
+    reports: &Reports,
+) -> Outcome {
+    use rsasim::evaluate::{MeasuredSource, report};
+    use rsasim::sweep::{folder, summary};
+    if truth.is_some()
+        || matches!(
+            options.measured,
+            MeasuredSource::Csv(_) | MeasuredSource::PerRunIn { .. }
+        )
+    {
+        eprintln!(
+            "error: {}: a sweep folder is evaluated point by point from the results in its run folders; --truth, --csv and --results-in are for one output folder\n  = help: evaluate a point's folder ({}/<point id>) with them, or drop them",
+            dir.display(),
+            dir.display()
+        );
+        return Err(2);
+    }
+    let index = rsasim::sweep::read_index(dir).map_err(|e| report_errors(&e))?;
+    let start = Instant::now();
+    let mut point_dirs = Vec::with_capacity(index.points.len());
+    for p in &index.points {
+        point_dirs
+            .push(rsasim::sweep::folder::point_folder(dir, p).map_err(|e| report_errors(&e))?);
+    }
+    let mut scored = Vec::with_capacity(index.points.len());
+    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
+        eprintln!("rsasim evaluate: point {}", p.id);
+        scored.push(score(point_dir, None, options)?);
+    }
+    let mut targets = Vec::with_capacity(scored.len());
+    for (point_dir, r) in point_dirs.iter().zip(&scored) {
+        let point_dir = point_dir.join(report::default_folder_name(r));
+        targets.push(report::claim_report_dir(&point_dir).map_err(|d| report_errors(&[*d]))?);
+    }
+    let summary_dir = reports
+        .dir
+        .clone()
+        .unwrap_or_else(|| dir.join(folder::REPORT_DIR));
+    let summary_target =
+        report::claim_report_dir(&summary_dir).map_err(|d| report_errors(&[*d]))?;
+    for (r, target) in scored.iter().zip(targets) {
+        write_report(r, target, reports, start)?;
+    }
+    summary_target
+        .notes
+        .iter()
+        .for_each(|n| eprintln!("rsasim: {n}"));
+    let written =
+        summary::write(summary_target, &summary::summary(&index, &scored)).map_err(|e| {
+            eprintln!(
+                "error: writing the summary into {} failed: {e}",
+                summary_dir.display()
+            );
+            1
+        })?;
+    eprintln!(
+        "rsasim evaluate: sweep {} ({} points) in {:.2} s -> {}",
+        index.name,
+        index.points.len(),
         start.elapsed().as_secs_f64(),
         shown(&written)
     );

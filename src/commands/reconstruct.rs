@@ -1,5 +1,5 @@
 //! `rsasim reconstruct`: the reference RSA program on an output folder (on a sweep folder: on
-//! every point, by [`super::sweep::reconstruct_any`]).
+//! every point, by [`reconstruct_any`]).
 
 use std::path::Path;
 use std::time::Instant;
@@ -8,7 +8,6 @@ use rsasim::reconstruct::Options;
 
 use super::Outcome;
 use super::shared::report_errors;
-use super::sweep::reconstruct_any;
 use crate::cli::ReconstructArgs;
 
 /// Reconstructs the output folder, or every point of the sweep folder, given.
@@ -67,4 +66,37 @@ pub fn one(out: &Path, options: &Options) -> Outcome {
     } else {
         Err(1)
     }
+}
+
+/// `rsasim reconstruct` on an output folder, or on every point of a sweep folder (all points
+/// are tried; the worst exit code is returned).
+pub fn reconstruct_any(out: &Path, options: &rsasim::reconstruct::Options) -> Outcome {
+    if !rsasim::sweep::is_sweep_folder(out) {
+        return one(out, options);
+    }
+    let index = rsasim::sweep::read_index(out).map_err(|e| report_errors(&e))?;
+    let mut point_dirs = Vec::with_capacity(index.points.len());
+    for p in &index.points {
+        point_dirs
+            .push(rsasim::sweep::folder::point_folder(out, p).map_err(|e| report_errors(&e))?);
+    }
+    let mut worst = Ok(());
+    let mut written: Vec<&str> = Vec::new();
+    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
+        eprintln!("rsasim reconstruct: point {}", p.id);
+        match one(point_dir, options) {
+            Ok(()) => written.push(&p.id),
+            Err(code) => worst = Err(worst.err().map_or(code, |w: u8| w.max(code))),
+        }
+    }
+    // Exit 2 says nothing was written: once a point's results are written, a later point's bad
+    // input is exit 1, with the points that were reconstructed named.
+    if worst == Err(2) && !written.is_empty() {
+        eprintln!(
+            "rsasim reconstruct: the results of point(s) {} were written before a later point was refused",
+            written.join(", ")
+        );
+        return Err(1);
+    }
+    worst
 }

@@ -1,19 +1,16 @@
 //! `rsasim sweep`: a parameter sweep run point by point (or as one task of a sharded sweep, or
-//! the merge of its shards), then optionally reconstructed and evaluated; and `reconstruct` and
-//! `evaluate` on a sweep folder.
+//! the merge of its shards), then optionally reconstructed and evaluated (`reconstruct` and
+//! `evaluate` on a sweep folder live with those commands).
 
 use std::path::Path;
 use std::time::Instant;
 
-use rsasim::evaluate::Options;
 use rsasim::shard::ShardRequest;
 use rsasim::simulate::Allowances;
 use rsasim::sweep::{Sweep, SweepFolder};
 
-use super::evaluate::{self, Reports};
-use super::shared::{
-    MAX_ERRORS_SHOWN, check_shard_count, prepare, report_errors, resolve_shard, shown,
-};
+use super::evaluate;
+use super::shared::{MAX_ERRORS_SHOWN, check_shard_count, prepare, report_errors, resolve_shard};
 use super::{Outcome, reconstruct, run};
 use crate::cli::{EvaluateArgs, SweepArgs};
 
@@ -31,110 +28,6 @@ pub fn execute(args: SweepArgs) -> Outcome {
         }
         (None, false) => sweep(&args, &allow),
     }
-}
-
-/// `rsasim reconstruct` on an output folder, or on every point of a sweep folder (all points
-/// are tried; the worst exit code is returned).
-pub fn reconstruct_any(out: &Path, options: &rsasim::reconstruct::Options) -> Outcome {
-    if !rsasim::sweep::is_sweep_folder(out) {
-        return reconstruct::one(out, options);
-    }
-    let index = rsasim::sweep::read_index(out).map_err(|e| report_errors(&e))?;
-    let mut point_dirs = Vec::with_capacity(index.points.len());
-    for p in &index.points {
-        point_dirs
-            .push(rsasim::sweep::folder::point_folder(out, p).map_err(|e| report_errors(&e))?);
-    }
-    let mut worst = Ok(());
-    let mut written: Vec<&str> = Vec::new();
-    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
-        eprintln!("rsasim reconstruct: point {}", p.id);
-        match reconstruct::one(point_dir, options) {
-            Ok(()) => written.push(&p.id),
-            Err(code) => worst = Err(worst.err().map_or(code, |w: u8| w.max(code))),
-        }
-    }
-    // Exit 2 says nothing was written: once a point's results are written, a later point's bad
-    // input is exit 1, with the points that were reconstructed named.
-    if worst == Err(2) && !written.is_empty() {
-        eprintln!(
-            "rsasim reconstruct: the results of point(s) {} were written before a later point was refused",
-            written.join(", ")
-        );
-        return Err(1);
-    }
-    worst
-}
-
-/// `rsasim evaluate` on a sweep folder: scores every point (nothing written), claims every
-/// point's report folder and the summary's, then writes the point reports and the summary.
-pub fn evaluate_sweep(
-    dir: &Path,
-    truth: Option<&Path>,
-    options: &Options,
-    reports: &Reports,
-) -> Outcome {
-    use rsasim::evaluate::{MeasuredSource, report};
-    use rsasim::sweep::{folder, summary};
-    if truth.is_some()
-        || matches!(
-            options.measured,
-            MeasuredSource::Csv(_) | MeasuredSource::PerRunIn { .. }
-        )
-    {
-        eprintln!(
-            "error: {}: a sweep folder is evaluated point by point from the results in its run folders; --truth, --csv and --results-in are for one output folder\n  = help: evaluate a point's folder ({}/<point id>) with them, or drop them",
-            dir.display(),
-            dir.display()
-        );
-        return Err(2);
-    }
-    let index = rsasim::sweep::read_index(dir).map_err(|e| report_errors(&e))?;
-    let start = Instant::now();
-    let mut point_dirs = Vec::with_capacity(index.points.len());
-    for p in &index.points {
-        point_dirs
-            .push(rsasim::sweep::folder::point_folder(dir, p).map_err(|e| report_errors(&e))?);
-    }
-    let mut scored = Vec::with_capacity(index.points.len());
-    for (p, point_dir) in index.points.iter().zip(&point_dirs) {
-        eprintln!("rsasim evaluate: point {}", p.id);
-        scored.push(evaluate::score(point_dir, None, options)?);
-    }
-    let mut targets = Vec::with_capacity(scored.len());
-    for (point_dir, r) in point_dirs.iter().zip(&scored) {
-        let point_dir = point_dir.join(report::default_folder_name(r));
-        targets.push(report::claim_report_dir(&point_dir).map_err(|d| report_errors(&[*d]))?);
-    }
-    let summary_dir = reports
-        .dir
-        .clone()
-        .unwrap_or_else(|| dir.join(folder::REPORT_DIR));
-    let summary_target =
-        report::claim_report_dir(&summary_dir).map_err(|d| report_errors(&[*d]))?;
-    for (r, target) in scored.iter().zip(targets) {
-        evaluate::write_report(r, target, reports, start)?;
-    }
-    summary_target
-        .notes
-        .iter()
-        .for_each(|n| eprintln!("rsasim: {n}"));
-    let written =
-        summary::write(summary_target, &summary::summary(&index, &scored)).map_err(|e| {
-            eprintln!(
-                "error: writing the summary into {} failed: {e}",
-                summary_dir.display()
-            );
-            1
-        })?;
-    eprintln!(
-        "rsasim evaluate: sweep {} ({} points) in {:.2} s -> {}",
-        index.name,
-        index.points.len(),
-        start.elapsed().as_secs_f64(),
-        shown(&written)
-    );
-    Ok(())
 }
 
 /// Writes the sweep folder's own files (sweep.json, the sweep file's copy, the point scenarios
@@ -233,7 +126,7 @@ fn finish_sweep(out: &Path, evaluate_too: bool) -> Outcome {
         );
         return Ok(());
     }
-    let reconstructed = reconstruct_any(out, &rsasim::reconstruct::Options::default());
+    let reconstructed = reconstruct::reconstruct_any(out, &rsasim::reconstruct::Options::default());
     evaluate::execute(EvaluateArgs::defaults(out.to_path_buf()))?;
     reconstructed
 }
