@@ -256,22 +256,7 @@ fn check_images(runs: &[RunExport]) -> Result<(), Error> {
     for run in runs {
         for image in &run.truth.images {
             let stem = format!("{}-{}", image.exposure, image.detector);
-            let det = run
-                .truth
-                .run
-                .detectors
-                .iter()
-                .find(|d| d.id == image.detector)
-                .ok_or_else(|| {
-                    Error::Input(vec![Diagnostic::file_error(
-                        &run.dir.join("truth.json"),
-                        format!("image `{stem}` names an unknown detector"),
-                    )])
-                })?;
-            let (w, h, _) = read_image(&run.dir, &stem).map_err(|e| {
-                Error::Input(vec![Diagnostic::file_error(&run.dir, format!("cannot read the image: {e}"))
-                    .with_help("export reads the TIFF (or EXR) images of every run; give a folder written with them")])
-            })?;
+            let (det, (w, h, _)) = run_image(run, image, &stem)?;
             if [w, h] != det.pixels {
                 return Err(Error::Input(vec![Diagnostic::file_error(
                     &run.dir,
@@ -284,6 +269,31 @@ fn check_images(runs: &[RunExport]) -> Result<(), Error> {
         }
     }
     Ok(())
+}
+
+/// An image of a run, decoded, with the detector that took it.
+fn run_image<'a>(
+    run: &'a RunExport,
+    image: &crate::output::ImageTruth,
+    stem: &str,
+) -> Result<(&'a DetectorState, (u32, u32, Vec<u16>)), Error> {
+    let det = run
+        .truth
+        .run
+        .detectors
+        .iter()
+        .find(|d| d.id == image.detector)
+        .ok_or_else(|| {
+            Error::Input(vec![Diagnostic::file_error(
+                &run.dir.join("truth.json"),
+                format!("image `{stem}` names an unknown detector"),
+            )])
+        })?;
+    let decoded = read_image(&run.dir, stem).map_err(|e| {
+        Error::Input(vec![Diagnostic::file_error(&run.dir, format!("cannot read the image: {e}"))
+            .with_help("export reads the TIFF (or EXR) images of every run; give a folder written with them")])
+    })?;
+    Ok((det, decoded))
 }
 
 /// Refuses an export folder inside the output folder (it would add files the manifest does not
@@ -513,22 +523,7 @@ fn write_run(
     // Images.
     for image in &run.truth.images {
         let stem = format!("{}-{}", image.exposure, image.detector);
-        let det = run
-            .truth
-            .run
-            .detectors
-            .iter()
-            .find(|d| d.id == image.detector)
-            .ok_or_else(|| {
-                Error::Input(vec![Diagnostic::file_error(
-                    &run.dir.join("truth.json"),
-                    format!("image `{stem}` names an unknown detector"),
-                )])
-            })?;
-        let (w, h, pixels) = read_image(&run.dir, &stem).map_err(|e| {
-            Error::Input(vec![Diagnostic::file_error(&run.dir, format!("cannot read the image: {e}"))
-                .with_help("export reads the TIFF (or EXR) images of every run; give a folder written with them")])
-        })?;
+        let (det, (w, h, pixels)) = run_image(run, image, &stem)?;
         let converted = export_pixels(&pixels, w, det.i_max(), options.invert);
         let description = format!(
             "rsasim export: run {id}, image {stem}, rows flipped (bottom row first), {}scaled to 0..65535 from 0..{}",
