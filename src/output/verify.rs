@@ -87,6 +87,22 @@ pub fn read_manifest(dir: &Path) -> Result<(Manifest, Vec<u8>), Finding> {
 /// Checks the manifest's own integrity (its format tags and its `manifest_sha256`).
 pub fn check_manifest(manifest: &Manifest, bytes: &[u8]) -> Vec<Finding> {
     let mut out = Vec::new();
+    // A path listed twice would be placed twice by `merge`: the second placement over a hard
+    // link to the first would truncate the shard's own file.
+    let mut seen = std::collections::HashSet::with_capacity(manifest.files.len());
+    if let Some(twice) = manifest
+        .files
+        .iter()
+        .find(|f| !seen.insert(f.path.as_str()))
+    {
+        out.push(Finding::new(
+            "manifest.json",
+            format!(
+                "lists {} twice: a manifest rsasim writes lists every file once",
+                crate::diagnostic::cut(&twice.path)
+            ),
+        ));
+    }
     if manifest.format != MANIFEST_FORMAT {
         out.push(Finding::new(
             "manifest.json",
