@@ -12,9 +12,8 @@
 //!   entry, links not followed, with the SHA-256 of every file, taken before and after; a `--dir`
 //!   of `export` must not exist), so nothing outside the output the user named either. The
 //!   folder holds a "victim" (another output) where the hostile paths point, and the hostile
-//!   `../` ids climb no further than the folder, so a write they cause is seen. Only lock files
-//!   (`.<name>.rsasim-lock`, kept by design) beside or inside a path the command names are
-//!   tolerated, and printed,
+//!   `../` ids climb no further than the folder, so a write they cause is seen. Not even a lock
+//!   file (`.<name>.rsasim-lock`, removed by its holder) may be left,
 //! - within [`HOSTILE_LIMIT`] (the issue asks for 1 s with small inputs in a release build; the
 //!   tests run the optimised dev build, so the bound is looser and the time is printed). A hang is
 //!   killed after [`HARD_KILL`] and fails, and the child's address space is capped at
@@ -309,36 +308,6 @@ fn named(root: &Path, args: &[&str]) -> Vec<PathBuf> {
         .collect()
 }
 
-/// The differences between two trees, split in two: every difference but lock files, and the
-/// lock files (`.<name>.rsasim-lock`, which rsasim keeps by design, see
-/// `src/output/commit/lock.rs`) beside or inside one of the `named` paths.
-fn changes(
-    named: &[PathBuf],
-    before: &BTreeMap<String, String>,
-    after: &BTreeMap<String, String>,
-) -> (Vec<String>, Vec<String>) {
-    let is_named_lock = |line: &String| {
-        let rel = Path::new(
-            line.split_whitespace()
-                .nth(1)
-                .unwrap_or("")
-                .trim_end_matches(':'),
-        );
-        let lock = rel.file_name().is_some_and(|n| {
-            let n = n.to_string_lossy();
-            n.starts_with('.') && n.ends_with(".rsasim-lock")
-        });
-        let parent = rel.parent().unwrap_or(Path::new(""));
-        lock && named
-            .iter()
-            .any(|n| parent.starts_with(n) || Some(parent) == n.parent())
-    };
-    let (locks, diff): (Vec<String>, Vec<String>) = tree_diff(before, after)
-        .into_iter()
-        .partition(is_named_lock);
-    (diff, locks)
-}
-
 /// A test's own temporary folder, with the snapshot contract of hostile cases.
 struct Case {
     tmp: tempfile::TempDir,
@@ -365,9 +334,7 @@ impl Case {
 
     /// Runs a hostile command in the case's folder and returns what is wrong with the outcome
     /// (empty: the contract holds): exit 2 naming a file and a field, in time, and not one entry
-    /// of the case's folder created, changed or removed. The one exception is a lock file
-    /// (`.<name>.rsasim-lock`, which rsasim keeps by design: see `src/output/commit/lock.rs`)
-    /// beside or inside a path the command names; it is printed, not counted.
+    /// of the case's folder created, changed or removed, not even a lock file.
     fn try_refused(&self, args: &[&str], names: &Names) -> (Ran, Vec<String>) {
         let before = tree(self.path());
         let ran = rsasim_in(self.path(), args);
@@ -377,10 +344,7 @@ impl Case {
             problems.push(e);
         }
         let named = named(self.path(), args);
-        let (diff, locks) = changes(&named, &before, &after);
-        for l in &locks {
-            eprintln!("note: {}: lock file {l}", ran.what);
-        }
+        let diff = tree_diff(&before, &after);
         if !diff.is_empty() {
             // Entries outside every named path first: those are the worst.
             let (mut outside, inside): (Vec<String>, Vec<String>) =
@@ -1096,7 +1060,7 @@ fn a_huge_shard_count_with_allow_large_does_not_abort() {
     );
     assert!(ran.elapsed < HOSTILE_LIMIT, "{}", ran.describe());
     if ran.code == Some(2) {
-        let (diff, _) = changes(&named(case.path(), &args), &before, &tree(case.path()));
+        let diff = tree_diff(&before, &tree(case.path()));
         assert!(diff.is_empty(), "exit 2, yet: {diff:?}");
     }
 }
@@ -1259,7 +1223,7 @@ fn sweep_merge_writes_nothing_or_says_what_it_merged() {
     let (d, m) = (dir.to_str().unwrap(), models());
     let args = ["sweep", file, "--out", d, "--merge", "--allow-dir", &m];
     let ran = rsasim_in(case.path(), &args);
-    let (diff, _) = changes(&named(case.path(), &args), &before, &tree(case.path()));
+    let diff = tree_diff(&before, &tree(case.path()));
     eprintln!("{}", ran.describe());
     assert!(
         !ran.timed_out && ran.signal.is_none() && ran.code != Some(0) && ran.code != Some(101),
@@ -2036,4 +2000,123 @@ fn a_scenario_with_its_mesh_under_dev_shm_validates_and_runs() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
     assert!(dir.join("out/manifest.json").is_file());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Found by the received-folder mutation campaign (`tests/mutation.rs`, `examples/fuzz_inputs.rs`)
+
+/// `S/points` that is a file, a FIFO or a symbolic link to another folder, in a sharded sweep
+/// folder: `sweep --merge` refuses it naming it (exit 2, nothing written, no lock left), instead
+/// of exit 1 ("Not a directory") or writing the point scenarios through the link.
+#[test]
+fn sweep_merge_refuses_a_points_entry_that_is_not_a_folder() {
+    let file = sweep().file.to_str().unwrap().to_string();
+    let m = models();
+    for what in ["file", "fifo", "link"] {
+        let case = Case::new();
+        let dir = case.join("sharded");
+        copy_tree(&sweep().sharded, &dir);
+        let points = dir.join("points");
+        std::fs::remove_dir_all(&points).unwrap();
+        match what {
+            "file" => std::fs::write(&points, "not a folder").unwrap(),
+            "fifo" => mkfifo(&points),
+            _ => {
+                std::fs::create_dir(case.join("elsewhere")).unwrap();
+                std::os::unix::fs::symlink(case.join("elsewhere"), &points).unwrap();
+            }
+        }
+        let d = dir.to_str().unwrap();
+        case.refused(
+            &["sweep", &file, "--out", d, "--merge", "--allow-dir", &m],
+            &Names {
+                files: &["points"],
+                fields: &["folder", "points"],
+            },
+        );
+    }
+}
+
+/// A sweep file with 40,000 `[[parameters]]` tables (1.6 MB, below the size cap) is refused at
+/// once naming the cap on parameters (a check for keys swept twice compared every pair: 100,001
+/// tables took minutes).
+#[test]
+fn a_sweep_file_with_forty_thousand_parameters_is_refused_quickly() {
+    let case = Case::new();
+    let mut text = format!(
+        "scenario = \"{}\"\ncombine = \"zip\"\n",
+        root().join("tests/scenarios/shards.toml").display()
+    );
+    for k in 0..40_000 {
+        text += &format!("[[parameters]]\nkey = \"k{k}\"\nvalues = [1]\n");
+    }
+    std::fs::write(case.join("many.toml"), text).unwrap();
+    let (f, out, m) = (case.s("many.toml"), case.s("S"), models());
+    case.refused(
+        &["sweep", &f, "--out", &out, "--merge", "--allow-dir", &m],
+        &Names {
+            files: &["many.toml"],
+            fields: &["parameters"],
+        },
+    );
+}
+
+/// A bead table whose rows are repeated 5,000 times (or name a bead the scenario does not have)
+/// is refused by `reconstruct` naming the table and the row, instead of a correspondence search
+/// that ran for minutes.
+#[test]
+fn reconstruct_refuses_a_bead_table_that_is_not_the_scenarios() {
+    for how in ["repeated", "unknown", "nan"] {
+        let (case, out) = plain_case();
+        let table = std::fs::read_dir(out.join("phantoms"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.extension().is_some_and(|x| x == "csv"))
+            .expect("the plain output has a bead table");
+        let text = std::fs::read_to_string(&table).unwrap();
+        let last = text.lines().last().unwrap().to_string();
+        let hostile = match how {
+            "repeated" => format!("{text}{}", format!("{last}\n").repeat(5000)),
+            "unknown" => format!("{text}intruder,{}\n", last.split_once(',').unwrap().1),
+            _ => {
+                let mut fields: Vec<&str> = last.split(',').collect();
+                fields[3] = "NaN";
+                text.replace(&last, &fields.join(","))
+            }
+        };
+        std::fs::write(&table, hostile).unwrap();
+        let name = table.file_name().unwrap().to_str().unwrap().to_string();
+        let o = out.to_str().unwrap();
+        case.refused(
+            &["reconstruct", o],
+            &Names {
+                files: &[name.as_str()],
+                fields: &["bead", "x_mm"],
+            },
+        );
+    }
+}
+
+/// An output's `scenario.toml` with 4,000 copies of a detector (1.6 MB, below the size cap):
+/// `reconstruct` refuses it at once, naming the first duplicate (every error's line was found by
+/// scanning the text from its start; 92,000 copies ran past 20 s).
+#[test]
+fn reconstruct_refuses_four_thousand_detectors_quickly() {
+    let (case, out) = plain_case();
+    let path = out.join("scenario.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start = text.find("[[detectors]]").expect("a detector table");
+    let end = text[start + 1..]
+        .find("\n[")
+        .map_or(text.len(), |i| start + 2 + i);
+    let block = format!("{}\n", text[start..end].trim_end());
+    std::fs::write(&path, format!("{text}\n{}", block.repeat(4_000))).unwrap();
+    let o = out.to_str().unwrap();
+    case.refused(
+        &["reconstruct", o],
+        &Names {
+            files: &["scenario.toml"],
+            fields: &["id", "detectors"],
+        },
+    );
 }

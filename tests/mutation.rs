@@ -8,6 +8,27 @@
 //!
 //! Never a panic (exit 101), an abort, a hang, exit 1 after `validate` said valid, or a leftover.
 //!
+//! The same contract holds for the folders a lab *receives* (`received_folders` below): every byte
+//! of a received output, sweep or shard folder is the sender's, its manifests too (half the mutants
+//! are rehashed into their manifest, as a hostile sender would, so that they reach the parsers).
+//! Each reading command (`export`, `evaluate`, `reconstruct`, `verify`, `merge`, `sweep --merge`)
+//! runs on a copy of a folder made once, with one file mutated (its values replaced by hostile
+//! numbers and strings, paths out of the folder among them; entries duplicated, up to many
+//! thousand times; its structure or bytes broken; or the file replaced by a FIFO, a link out of
+//! the folder or to a device, a folder, a sparse file past the caps, nothing) or one folder
+//! replaced (by a link out or to a sibling, a file, a FIFO, nothing) or given unlisted entries.
+//! It must exit 0 having written only into the output the user named (which then verifies, with
+//! no NaN or infinite report cell or camera number), or exit 2 naming a file and having written
+//! nothing at all, not even a lock file (`reconstruct` may also exit 1, writing only its results);
+//! never panic, abort or hang (killed after `RSASIM_MUTATION_LIMIT_S`, default 20 s). Run as
+//! root, the mutants run as `nobody` on a copy they own, so that no mutant can touch system files.
+//! A failing mutant's whole folder is kept in `$TMPDIR/rsasim-mutant-<command>-<seed>`; replay one
+//! with `RSASIM_MUTATION_SEED=<seed> RSASIM_MUTATION_CASES=1 cargo test --test mutation
+//! received_folders::<test>`. The folders are built with the binary under test, their manifests
+//! then given one fixed build (commit zero) and resealed, so a seed names the same mutant whichever
+//! commit built the binary, as long as the bytes rsasim writes do not change. The long run (20,000
+//! mutants per command) is `examples/fuzz_inputs.rs`.
+//!
 //! The budget is small for CI. For longer runs (fuzzing as a habit, see the README):
 //! `RSASIM_MUTATION_CASES=5000 RSASIM_MUTATION_SEED=$RANDOM cargo test --release --test mutation`.
 //! A failure prints the seed of its mutant and keeps the mutant file so it can be replayed.
@@ -549,4 +570,90 @@ fn a_mutated_truth_is_never_scored() {
         }
         Ok(())
     });
+}
+
+/// Received folders: one test per reading command, each on its own folder built once.
+#[cfg(unix)]
+mod received_folders {
+    use super::{cases, over_seeds};
+    use crate::mutate::received::{Harness, Kind};
+    use std::path::PathBuf;
+    use std::time::Duration;
+
+    /// How long one command may take before it counts as a hang: `RSASIM_MUTATION_LIMIT_S`, or
+    /// 20 s (every command here takes well under 2 s on its small folder).
+    fn limit() -> Duration {
+        let s = std::env::var("RSASIM_MUTATION_LIMIT_S")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(20);
+        Duration::from_secs(s)
+    }
+
+    /// Builds `kind`'s folder, checks that the unmutated copy is read (exit 0, the contract's
+    /// checks pass), then runs `cases(default)` mutants.
+    fn received(kind: Kind, default: usize) {
+        let h = Harness::new(PathBuf::from(env!("CARGO_BIN_EXE_rsasim")), limit());
+        let fixture = h.fixture(kind.fixture());
+        match h.check(kind, &fixture, None) {
+            Ok(0) => {}
+            Ok(code) => panic!("{}: the unmutated folder gave exit {code}", kind.name()),
+            Err(f) => panic!("the unmutated folder must be read:\n{f}"),
+        }
+        over_seeds(cases(default), |seed| {
+            h.check(kind, &fixture, Some(seed))
+                .map(|_| ())
+                .map_err(|f| f.to_string())
+        });
+    }
+
+    #[test]
+    fn export_to_xmalab() {
+        received(Kind::ExportXmalab, 100);
+    }
+
+    #[test]
+    fn export_to_autoscoper() {
+        received(Kind::ExportAutoscoper, 100);
+    }
+
+    #[test]
+    fn evaluate() {
+        received(Kind::Evaluate, 100);
+    }
+
+    #[test]
+    fn evaluate_a_study() {
+        received(Kind::EvaluateStudy, 80);
+    }
+
+    #[test]
+    fn reconstruct() {
+        received(Kind::Reconstruct, 80);
+    }
+
+    #[test]
+    fn verify() {
+        received(Kind::Verify, 120);
+    }
+
+    #[test]
+    fn merge() {
+        received(Kind::Merge, 100);
+    }
+
+    #[test]
+    fn sweep_merge() {
+        received(Kind::SweepMerge, 100);
+    }
+
+    #[test]
+    fn evaluate_a_sweep() {
+        received(Kind::EvaluateSweep, 80);
+    }
+
+    #[test]
+    fn reconstruct_a_sweep() {
+        received(Kind::ReconstructSweep, 80);
+    }
 }

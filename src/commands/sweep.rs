@@ -208,18 +208,21 @@ fn sweep_shard(args: &SweepArgs, request: ShardRequest, allow: &Allowances) -> O
 }
 
 /// `rsasim sweep --merge`: the sweep prepared and its folder claimed (the lock held), every
-/// point's shards checked (every problem of every point reported; exit 2, nothing written),
-/// every point's output folder claimed, then each point merged; with `--evaluate`,
+/// point's shards checked (every problem of every point reported; exit 2, nothing written), the
+/// sweep's own files written or checked, every point's output folder claimed, then each point
+/// merged; with `--evaluate`,
 /// reconstructed and evaluated as an unsharded sweep.
 fn sweep_merge(args: &SweepArgs, allow: &Allowances) -> Outcome {
     use rsasim::output::merge;
     let (file, out) = (args.file.as_path(), args.out.as_path());
     let start = Instant::now();
-    let (sweep, folder) = open_sweep(file, out, allow, false)?;
+    let sweep = rsasim::sweep::prepare(file, allow).map_err(|e| report_errors(&e))?;
+    let folder = rsasim::sweep::claim(&sweep, out).map_err(|e| report_errors(&e))?;
+    // `check` hashes every file of every point's shards (rsasim::output::merge::check) before the
+    // sweep's own files are written or checked, so its exit 2 means nothing was written.
     let points = rsasim::sweep::merge::check(&sweep, &folder, args.shard_count)
         .map_err(|e| report_errors(&e))?;
-    // `check` hashed every file of every point's shards (rsasim::output::merge::check), so exit
-    // 2 above means nothing was written.
+    write_points(&folder, &sweep, out)?;
     let mut targets = Vec::with_capacity(points.len());
     for p in &points {
         for path in &p.shards.not_merged {

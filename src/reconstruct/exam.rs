@@ -72,7 +72,7 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
     );
     let folder = ReceivedFolder::unlisted(out);
     let mut beads = BTreeMap::new();
-    for p in &loaded.scenario.phantoms {
+    for (p, model) in loaded.scenario.phantoms.iter().zip(&models) {
         let name = if p.mesh.is_some() {
             format!("{}-beads.csv", p.id)
         } else {
@@ -81,7 +81,10 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
         let rel = format!("phantoms/{name}");
         if folder.exists(&rel) {
             let bytes = folder.read(&rel, MAX_TABLE_BYTES).map_err(|d| vec![d])?;
-            beads.insert(p.id.clone(), parse_bead_table(&folder.path(&rel), &bytes)?);
+            beads.insert(
+                p.id.clone(),
+                parse_bead_table(&folder.path(&rel), &bytes, &model.markers)?,
+            );
         }
     }
     let physics = if loaded.scenario.imaging.is_attenuation() {
@@ -102,35 +105,80 @@ pub fn load_setup(out: &Path) -> Result<Setup, Vec<Diagnostic>> {
     })
 }
 
-/// Reads a bead table: `id,plate,role,x_mm,y_mm,z_mm,diameter_mm`.
-pub fn read_bead_table(file: &Path) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
-    let bytes = crate::output::received::read_named(file, MAX_TABLE_BYTES).map_err(|d| vec![d])?;
-    parse_bead_table(file, &bytes)
-}
-
-/// Parses a bead table read from `file` (see [`read_bead_table`]).
-fn parse_bead_table(file: &Path, bytes: &[u8]) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
+/// Parses the bead table read from `file` (`id,plate,role,x_mm,y_mm,z_mm,diameter_mm`), which
+/// must list exactly the beads of the scenario's phantom (`markers`), each once, with finite
+/// numbers: positions at most [`scenario::MAX_ABS`] mm from the origin's axes and
+/// positive diameters. A received table cannot add beads the scenario does not have (5,000 copies
+/// of one row made the correspondence search run for minutes).
+fn parse_bead_table(
+    file: &Path,
+    bytes: &[u8],
+    markers: &[phantom::Marker],
+) -> Result<Vec<TableBead>, Vec<Diagnostic>> {
+    use std::collections::HashSet;
+    const HELP: &str = "columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm; one row per bead of the scenario's phantom, as rsasim wrote it";
+    let expected: HashSet<&str> = markers.iter().map(|m| m.id.as_str()).collect();
+    let mut seen: HashSet<String> = HashSet::new();
     let mut reader = csv::Reader::from_reader(bytes);
     let mut out = Vec::new();
     for (k, row) in reader.records().enumerate() {
         let bad = |what: String| {
-            let mut d = Diagnostic::file_error(file, what)
-                .with_help("columns: id,plate,role,x_mm,y_mm,z_mm,diameter_mm");
+            let mut d = Diagnostic::file_error(file, what).with_help(HELP);
             d.line_col = Some((k + 2, 1));
             vec![d]
         };
         let row = row.map_err(|e| bad(format!("malformed row: {e}")))?;
-        let num = |i: usize| {
-            row.get(i)
+        let num = |i: usize, name: &str| {
+            let v = row
+                .get(i)
                 .and_then(|v| v.parse::<f64>().ok())
-                .ok_or_else(|| bad(format!("column {} is not a number", i + 1)))
+                .ok_or_else(|| bad(format!("{name} (column {}) is not a number", i + 1)))?;
+            if v.is_finite() && v.abs() <= scenario::MAX_ABS {
+                Ok(v)
+            } else {
+                Err(bad(format!(
+                    "{name} (column {}) is {v}, not finite within ±{:e} mm",
+                    i + 1,
+                    scenario::MAX_ABS
+                )))
+            }
         };
+        let id = row.get(0).unwrap_or("").to_string();
+        if !expected.contains(id.as_str()) {
+            return Err(bad(format!(
+                "bead `{}` is not a bead of the scenario's phantom",
+                crate::diagnostic::cut(&id)
+            )));
+        }
+        if !seen.insert(id.clone()) {
+            return Err(bad(format!(
+                "bead `{}` is listed twice",
+                crate::diagnostic::cut(&id)
+            )));
+        }
+        let diameter_mm = num(6, "diameter_mm")?;
+        if diameter_mm <= 0.0 {
+            return Err(bad(format!("diameter_mm is {diameter_mm}, not positive")));
+        }
         out.push(TableBead {
-            id: row.get(0).unwrap_or("").to_string(),
+            id,
             plate: row.get(1).unwrap_or("").to_string(),
-            position_mm: DVec3::new(num(3)?, num(4)?, num(5)?),
-            diameter_mm: num(6)?,
+            position_mm: DVec3::new(num(3, "x_mm")?, num(4, "y_mm")?, num(5, "z_mm")?),
+            diameter_mm,
         });
+    }
+    if out.len() != markers.len() {
+        let mut d = Diagnostic::file_error(
+            file,
+            format!(
+                "lists {} bead(s); the scenario's phantom has {}",
+                out.len(),
+                markers.len()
+            ),
+        )
+        .with_help(HELP);
+        d.line_col = Some((out.len() + 2, 1));
+        return Err(vec![d]);
     }
     Ok(out)
 }

@@ -30,9 +30,11 @@ pub struct LoadedScenario {
     pub warnings: Vec<Diagnostic>,
 }
 
-/// Largest scenario file read: 64 MiB (the shipped ones are a few kB; a study listing thousands
-/// of patients stays far below).
-pub const MAX_SCENARIO_BYTES: u64 = 64 * 1024 * 1024;
+/// Largest scenario (or sweep) file read: 2 MiB. The shipped ones are a few kB, and a phantom
+/// listing 20,000 beads inline stays below; a scenario is parsed several times (located,
+/// deserialised, its magnitudes walked), at a few MB per second, so a received folder's
+/// `scenario.toml` at the cap is refused or read in well under a second (a 19 MB one took 3.4 s).
+pub const MAX_SCENARIO_BYTES: u64 = 2 * 1024 * 1024;
 
 /// Reads, parses and validates a scenario file. On failure every error found is returned
 /// (a parse error stops at the first; semantic checks report them all).

@@ -159,9 +159,27 @@ impl SweepFile {
     }
 }
 
+/// The most parameters a sweep file may vary. Every point applies every parameter to the base
+/// scenario, and a sweep of more than a few dozen axes is not one anyone can read; the cap keeps
+/// a received sweep file with 100,000 `[[parameters]]` tables from costing minutes.
+pub const MAX_PARAMETERS: usize = 64;
+
 /// Every problem of the records that needs no scenario.
 fn check(record: &SweepRecord, locator: &Locator) -> Vec<Diagnostic> {
     let mut errors = Vec::new();
+    if record.parameters.len() > MAX_PARAMETERS {
+        return vec![
+            locator
+                .error(
+                    KeyPath::root().key("parameters"),
+                    format!(
+                        "the sweep has {} [[parameters]] tables, more than the {MAX_PARAMETERS} allowed",
+                        record.parameters.len()
+                    ),
+                )
+                .with_help(format!("vary at most {MAX_PARAMETERS} keys in one sweep; split a larger study into several sweep files")),
+        ];
+    }
     if record.parameters.is_empty() {
         errors.push(
             locator

@@ -437,6 +437,31 @@ fn point_output_matches(out: &Path, sha256: &str) -> Result<(), String> {
     }
 }
 
+/// Makes the folder `path` if it is absent; a real folder there is used as it is. Anything else
+/// (a file, a FIFO, a symbolic link, which could lead the writes elsewhere) is an input error
+/// naming it: rsasim writes only into folders, never through a link.
+fn real_folder(path: &Path) -> Result<(), WriteError> {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.is_dir() => Ok(()),
+        Ok(meta) => Err(WriteError::Input(vec![
+            Diagnostic::file_error(
+                path,
+                format!(
+                    "is a {}, where the sweep keeps a folder",
+                    crate::input_file::kind(&meta)
+                ),
+            )
+            .with_help("move it away and run again; rsasim writes only into folders it made"),
+        ])),
+        // create_dir_all: the sweep folder's own parents may be new too; a folder another task
+        // of a sharded sweep made meanwhile is fine, and one that is not a folder fails.
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(path).map_err(WriteError::Io)
+        }
+        Err(e) => Err(WriteError::Io(e)),
+    }
+}
+
 impl SweepFolder {
     /// Writes the sweep's own files, each once ([`write_once`]): the index first (so a folder
     /// rsasim is filling is either empty or names its sweep), then the sweep file's copy, the
@@ -453,13 +478,15 @@ impl SweepFolder {
                 .with_help("move it away and run again; rsasim never replaces a file in a sweep folder")
             }))
         };
-        std::fs::create_dir_all(&self.dir).map_err(WriteError::Io)?;
+        real_folder(&self.dir)?;
         if let Some(d) = once(self.dir.join(INDEX), &self.index.to_bytes())? {
             // Another sweep was quicker into this folder: nothing of this one is written.
             return Err(WriteError::Input(vec![d]));
         }
-        let inputs = self.dir.join(POINTS_DIR).join(INPUTS_DIR);
-        std::fs::create_dir_all(&inputs).map_err(WriteError::Io)?;
+        let points = self.dir.join(POINTS_DIR);
+        let inputs = points.join(INPUTS_DIR);
+        real_folder(&points)?;
+        real_folder(&inputs)?;
         let mut differing = Vec::new();
         differing.extend(once(self.dir.join(SWEEP_COPY), &sweep.file.bytes)?);
         for (name, bytes) in &sweep.inputs {
