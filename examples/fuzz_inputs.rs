@@ -30,7 +30,7 @@
 //! and the failures grouped by reason, each as (seed, file mutated, how, exit code, first line of
 //! stderr); it exits 1 if any mutant failed. A seed names the same mutant on any build whose output
 //! bytes are the same (see `tests/mutation.rs`), so `RSASIM_MUTATION_SEED=<seed>
-//! RSASIM_MUTATION_CASES=1 cargo test --test mutation received_folders::<test>` replays it too.
+//! RSASIM_MUTATION_CASES=1 cargo test --test integration mutation::received_folders::<test>` replays it too.
 
 #[path = "../tests/common/mutate.rs"]
 mod mutate;

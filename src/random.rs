@@ -1,5 +1,5 @@
 //! The project's own derivation of random streams, so no dependency upgrade can move an output
-//! byte (DESIGN.md, "Determinism").
+//! byte (docs/CONVENTIONS.md, "Determinism and seeds").
 //!
 //! A stream is named by a label string; its 32-byte ChaCha key is the SHA-256 of the label's
 //! UTF-8 bytes, and the generator is ChaCha8 (`rand_chacha` 0.10, a fixed cipher) from that key.

@@ -2,7 +2,7 @@
 //! attenuation data along the exact chord, path-length truth, bead visibility, previews, and
 //! clear refusals of scenes that cannot be simulated.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,7 +1,7 @@
 //! Bad scenarios: each gives a clear error that names the file, the line and the key, exit code
 //! 2, and writes nothing.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

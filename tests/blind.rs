@@ -2,7 +2,7 @@
 //! test a folder without truth or seed; `reconstruct` works on it and `evaluate --truth` scores
 //! across both folders exactly as the ordinary layout does.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,7 +1,7 @@
 //! `docs/CONVENTIONS.md` is the contract a reviewer reads instead of the code. These tests pin each
 //! formula and label it states against the code, so the document cannot drift from what rsasim does.
 
-mod common;
+use crate::common;
 
 use glam::{DMat3, DVec3};
 use rsasim::geometry::{DetectorFrame, Pose, rotation_xyz_deg};

@@ -2,7 +2,7 @@
 //! rate and centroid error against the projected centres in truth.json (the paper's tested
 //! program broke under noise; ours must not).
 
-mod common;
+use crate::common;
 
 use common::{read_tiff, run_scenario, truths};
 use rsasim::reconstruct::detect::blobs;

@@ -7,7 +7,7 @@
 //! A tool that is missing fails the test when `CI` is set; otherwise the test prints a loud
 //! `SKIPPED` line and returns.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

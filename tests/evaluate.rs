@@ -1,7 +1,7 @@
 //! `rsasim evaluate` end to end: measured files with known errors give exactly those truenesses
 //! and precisions; bad results are clear errors with exit code 2.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -3,7 +3,7 @@
 //! (rsasim's own encoder, `src/output/exr_deflate`) inflates by miniz_oxide to exactly OpenEXR's
 //! predicted bytes of those pixels.
 
-mod common;
+use crate::common;
 
 use common::{read_tiff, run_scenario};
 use exr::block::chunk::CompressedBlock;

@@ -1,6 +1,6 @@
 //! Tests that prove the geometry of the written images, not just that files appear.
 
-mod common;
+use crate::common;
 
 use common::{read_tiff, run_scenario, truths};
 use rsasim::geometry::{DVec3, DetectorFrame, Pose, rotation_xyz_deg};

@@ -8,9 +8,9 @@
 //! blessing them is refused until `version` in Cargo.toml is raised.
 //!
 //! To bless new hashes after a deliberate change (and a version bump):
-//! `RSASIM_BLESS=1 cargo test --test golden`, and say why in the commit message.
+//! `RSASIM_BLESS=1 cargo test --test integration golden::`, and say why in the commit message.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
@@ -124,13 +124,13 @@ fn golden_scenarios_reproduce_their_hashes() {
     assert!(
         changed.is_empty() || !same_version,
         "output bytes changed at the same crate version {version}: a change of output bytes needs \
-         a version bump (Cargo.toml), then `RSASIM_BLESS=1 cargo test --test golden`.\n{}",
+         a version bump (Cargo.toml), then `RSASIM_BLESS=1 cargo test --test integration golden::`.\n{}",
         changed.join("\n")
     );
     assert!(
         same_version && changed.is_empty(),
         "the golden hashes were blessed at version {}, the crate is {version}: re-bless with \
-         `RSASIM_BLESS=1 cargo test --test golden` and say why in the commit message.\n{}",
+         `RSASIM_BLESS=1 cargo test --test integration golden::` and say why in the commit message.\n{}",
         blessed_at
             .as_deref()
             .unwrap_or("(none: golden/VERSION is missing)"),

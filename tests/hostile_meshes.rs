@@ -2,7 +2,7 @@
 //! run, names the scenario key (`phantoms[1].mesh.file`, with its line) and the file, quotes no
 //! byte of any file it refused, writes nothing, and returns quickly (FIFOs, /dev/zero).
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};

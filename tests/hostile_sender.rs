@@ -26,7 +26,8 @@
 //! on its own copy. `untampered_fixtures_pass_every_command` shows that the fixtures themselves
 //! pass, so a hostile case fails for its hostile byte, not for a broken fixture.
 
-mod common;
+use crate::common;
+use crate::common::mutate::received::migration_csv;
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -557,28 +558,7 @@ fn study() -> &'static Study {
             &models(),
         ]);
         write_perfect_results(&out);
-        let study = read_json(&out.join("study.json"));
-        let mut csv =
-            String::from("patient,exam,segment,tx_mm,ty_mm,tz_mm,rx_deg,ry_deg,rz_deg,mtpm_mm\n");
-        for p in study["patients"].as_array().unwrap() {
-            for m in p["migration"].as_array().unwrap() {
-                let n = |v: &Value, k: usize| v[k].as_f64().unwrap();
-                let (t, r) = (&m["translation_mm"], &m["rotation_deg"]);
-                csv += &format!(
-                    "{},{},{},{},{},{},{},{},{},{}\n",
-                    p["id"].as_str().unwrap(),
-                    m["exam"].as_str().unwrap(),
-                    m["segment"].as_str().unwrap(),
-                    n(t, 0),
-                    n(t, 1),
-                    n(t, 2),
-                    n(r, 0),
-                    n(r, 1),
-                    n(r, 2),
-                    m["mtpm_mm"].as_f64().unwrap()
-                );
-            }
-        }
+        let csv = migration_csv(&read_json(&out.join("study.json")));
         Study {
             _tmp: tmp,
             out,

@@ -3,7 +3,7 @@
 //! flipped and scaled; hand-made XMALab CSVs in the exact layout give the residuals put into them;
 //! bad files and folders are refused with exit code 2.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

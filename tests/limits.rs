@@ -1,7 +1,7 @@
 //! Resource limits: what a scenario costs is known and capped before anything runs, `validate`
 //! says what a run will write, `expand` streams, and echoed user text is bounded.
 
-mod common;
+use crate::common;
 
 use common::rsasim;
 

@@ -3,7 +3,7 @@
 //! is in the manifest, the mesh of a glTF that references files is repacked as one `.glb`, and
 //! evaluate's tables include the model.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

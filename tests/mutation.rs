@@ -23,19 +23,18 @@
 //! never panic, abort or hang (killed after `RSASIM_MUTATION_LIMIT_S`, default 20 s). Run as
 //! root, the mutants run as `nobody` on a copy they own, so that no mutant can touch system files.
 //! A failing mutant's whole folder is kept in `$TMPDIR/rsasim-mutant-<command>-<seed>`; replay one
-//! with `RSASIM_MUTATION_SEED=<seed> RSASIM_MUTATION_CASES=1 cargo test --test mutation
-//! received_folders::<test>`. The folders are built with the binary under test, their manifests
+//! with `RSASIM_MUTATION_SEED=<seed> RSASIM_MUTATION_CASES=1 cargo test --test integration
+//! mutation::received_folders::<test>`. The folders are built with the binary under test, their manifests
 //! then given one fixed build (commit zero) and resealed, so a seed names the same mutant whichever
 //! commit built the binary, as long as the bytes rsasim writes do not change. The long run (20,000
 //! mutants per command) is `examples/fuzz_inputs.rs`.
 //!
 //! The budget is small for CI. For longer runs (fuzzing as a habit, see the README):
-//! `RSASIM_MUTATION_CASES=5000 RSASIM_MUTATION_SEED=$RANDOM cargo test --release --test mutation`.
+//! `RSASIM_MUTATION_CASES=5000 RSASIM_MUTATION_SEED=$RANDOM cargo test --release --test integration mutation::`.
 //! A failure prints the seed of its mutant and keeps the mutant file so it can be replayed.
 
-mod common;
-#[path = "common/mutate.rs"]
-mod mutate;
+use crate::common;
+use crate::common::mutate;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -576,7 +575,7 @@ fn a_mutated_truth_is_never_scored() {
 #[cfg(unix)]
 mod received_folders {
     use super::{cases, over_seeds};
-    use crate::mutate::received::{Harness, Kind};
+    use crate::common::mutate::received::{Harness, Kind};
     use std::path::PathBuf;
     use std::time::Duration;
 

@@ -1,7 +1,7 @@
 //! Output safety (issues 10 and 17): `--force` replaces only rsasim's own outputs, refusals come
 //! before any work, a failed, killed or concurrent run never leaves a mix or a corrupt output.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};

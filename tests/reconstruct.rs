@@ -2,7 +2,7 @@
 //! tight enough to fail when the geometry is off by a tenth of a millimetre, and proof that it
 //! never reads the ground truth.
 
-mod common;
+use crate::common;
 
 use common::{root, rsasim, run_scenario};
 use rsasim::evaluate::stats::Confidence;

@@ -7,7 +7,7 @@
 //! 1.5 mm tantalum beads image about 4 px across, as the 1 mm beads of `biplanar_realistic`
 //! do on its 0.2986 mm pixels. Bead K7 lies in front of the component's centre on beamline 1.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
@@ -389,7 +389,7 @@ fn on_blurred_scattered_images_the_implant_is_segmented_and_both_methods_find_it
 /// model beads' detection rate and centre error against the truth, with the beads' radius in
 /// pixels from `RSASIM_MEASURE_RADIUS_PX` (default 2.32: 1 mm at magnification 1.385 on
 /// 0.2986 mm pixels) and an optional blur `RSASIM_MEASURE_BLUR_PX`. Run with
-/// `cargo test --release --test reconstruct_realistic -- --ignored --nocapture`.
+/// `cargo test --release --test integration reconstruct_realistic:: -- --ignored --nocapture`.
 #[test]
 #[ignore = "measures an existing output named by RSASIM_MEASURE_OUT"]
 fn measure_detection_on_an_output() {

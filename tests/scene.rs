@@ -1,7 +1,7 @@
 //! `rsasim scene` end to end: the page of a scenario, its thumbnails against the images the
 //! simulation writes, what it refuses to replace, and the page in a real headless browser.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

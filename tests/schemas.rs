@@ -1,7 +1,7 @@
 //! The checked-in JSON Schemas are the ones the code generates; regenerate them with
 //! `cargo run -- schema --write-dir schemas` after changing a record.
 
-mod common;
+use crate::common;
 
 use common::{root, rsasim};
 

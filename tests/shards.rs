@@ -3,7 +3,7 @@
 //! tampered, foreign or mixed shard is refused with exit 2 and nothing written; a rerun of a
 //! finished shard writes nothing; `--shard auto` reads SLURM's and Kubernetes' variables.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

@@ -1,7 +1,7 @@
 //! Model-based RSA on graded (attenuation-mode) images: where the silhouette fit's orientation
 //! error comes from.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 
@@ -40,7 +40,7 @@ fn signed_distance(segments: &[OutlineSegment], p: DVec2) -> Option<(f64, usize)
 /// Diagnosis on an existing output (`RSASIM_PROBE_OUT`): per run, the edge points measured
 /// along the TRUE outline (true geometry, true pose) and their signed distance from it
 /// (outward positive), and the fit with the true geometry. Run with
-/// `cargo test --test silhouette_bias -- --ignored --nocapture`.
+/// `cargo test --test integration silhouette_bias:: -- --ignored --nocapture`.
 #[test]
 #[ignore = "measures an existing output named by RSASIM_PROBE_OUT"]
 fn probe_silhouette_bias_on_an_output() {

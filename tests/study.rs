@@ -3,7 +3,7 @@
 //! conventions on the shipped `tka_migration.toml`, double examinations, prefix-stable patients,
 //! loose and missing markers, and the located errors of a bad design.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -5,7 +5,7 @@
 //! excluded at every exam where it had moved, and the report must hold the study's tables and
 //! one plot per patient and parameter.
 
-mod common;
+use crate::common;
 
 use common::{root, rsasim_ok, run_scenario};
 use serde_json::Value;

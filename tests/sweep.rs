@@ -3,7 +3,7 @@
 //! line and key, nothing written), resuming, and a small sweep end to end whose summary CSV holds
 //! exactly every point's evaluate table, with its page drawn by a headless browser.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

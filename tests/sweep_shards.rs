@@ -5,7 +5,7 @@
 //! the sweep's own files are never replaced; `--shard auto` reads SLURM's and Kubernetes'
 //! variables.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

@@ -1,7 +1,7 @@
 //! `rsasim verify` and the truth check of `rsasim evaluate`: every file against the manifest,
 //! the manifest's own hash, files added, and the build recorded in the manifest and `--version`.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

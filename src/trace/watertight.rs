@@ -2,7 +2,7 @@
 //!
 //! A ray that passes exactly through an edge or a vertex shared by several triangles hits at
 //! least one of them, so no ray leaks through a closed mesh (obvhs' built-in Möller–Trumbore test
-//! lets a few through: see `shared/notes/crates.md`). Edge functions that come out exactly zero
+//! lets a few through where a ray meets a shared edge exactly). Edge functions that come out exactly zero
 //! in f32 are recomputed in f64, as the paper prescribes.
 
 use glam::Vec3A;

@@ -1282,7 +1282,9 @@ pub mod received {
     }
 
     /// The true migrations of `study.json` as the relative-motion CSV of `--migration-csv`.
-    fn migration_csv(study: &serde_json::Value) -> String {
+    /// The true migration of every follow-up of `study` (a `study.json`) as another program's
+    /// relative-motion CSV, the vendor file `evaluate --migration-csv` reads.
+    pub fn migration_csv(study: &serde_json::Value) -> String {
         let mut csv =
             String::from("patient,exam,segment,tx_mm,ty_mm,tz_mm,rx_deg,ry_deg,rz_deg,mtpm_mm\n");
         for p in study["patients"].as_array().unwrap() {
