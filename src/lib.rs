@@ -1,25 +1,18 @@
 //! rsasim: a Radio Stereometric Analysis simulator.
-pub mod attenuation;
-pub mod cost;
-pub mod diagnostic;
+//!
+//! The core (what a scenario is and how an image forms) is the crate `rsasim-core`, re-exported
+//! here under the same names; this crate adds the files rsasim reads and writes, the simulation
+//! driver, the reference RSA program, evaluation, sweeps and the command line.
+
+pub use rsasim_core::{
+    attenuation, cost, diagnostic, expand, geometry, input_file, material, noise, phantom, random,
+    response, sampling, scenario, shard, spectrum, trace,
+};
 pub mod evaluate;
-pub mod expand;
-pub mod geometry;
-pub mod input_file;
 pub mod interop;
-pub mod material;
 pub mod migration;
-pub mod noise;
 pub mod output;
-pub mod phantom;
-pub mod random;
 pub mod reconstruct;
-pub mod response;
-pub mod sampling;
-pub mod scenario;
 pub mod scene_view;
-pub mod shard;
 pub mod simulate;
-pub mod spectrum;
 pub mod sweep;
-pub mod trace;

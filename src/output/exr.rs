@@ -50,14 +50,13 @@ pub enum ExrAttr {
 
 pub use crate::scenario::ExrCompression;
 
-impl ExrCompression {
-    fn to_exr(self) -> Compression {
-        match self {
-            ExrCompression::None => Compression::Uncompressed,
-            ExrCompression::Rle => Compression::RLE,
-            ExrCompression::Zip => Compression::ZIP16,
-            ExrCompression::Zips => Compression::ZIP1,
-        }
+/// The `exr` crate's compression for a scenario's `exr_compression`.
+fn to_exr(compression: ExrCompression) -> Compression {
+    match compression {
+        ExrCompression::None => Compression::Uncompressed,
+        ExrCompression::Rle => Compression::RLE,
+        ExrCompression::Zip => Compression::ZIP16,
+        ExrCompression::Zips => Compression::ZIP1,
     }
 }
 
@@ -131,7 +130,7 @@ pub fn encode_exr_channels(
         (w, h),
         layer_attributes,
         Encoding {
-            compression: compression.to_exr(),
+            compression: to_exr(compression),
             blocks: Blocks::ScanLines,
             line_order: LineOrder::Increasing,
         },
@@ -166,7 +165,7 @@ pub fn encode_exr_channels(
     let mut out = Cursor::new(Vec::with_capacity(
         blocks.iter().map(|b| b.len() + 8).sum::<usize>() + 4096,
     ));
-    let lines = compression.to_exr().scan_lines_per_block();
+    let lines = to_exr(compression).scan_lines_per_block();
     ::exr::block::write(&mut out, headers, true, |_meta, writer| {
         for (index, block) in blocks.into_iter().enumerate() {
             let chunk = Chunk {
@@ -197,7 +196,7 @@ fn compress_blocks(
     compression: ExrCompression,
 ) -> Result<Vec<Vec<u8>>, String> {
     let line = w * channels;
-    let lines = compression.to_exr().scan_lines_per_block();
+    let lines = to_exr(compression).scan_lines_per_block();
     let count = h.div_ceil(lines);
     (0..count)
         .into_par_iter()
@@ -210,8 +209,7 @@ fn compress_blocks(
                 ExrCompression::None | ExrCompression::Rle => {
                     let ne: Vec<u8> = block.iter().flat_map(|v| v.to_ne_bytes()).collect();
                     let bounds = IntegerBounds::new(Vec2(0, y as i32), Vec2(w, rows));
-                    compression
-                        .to_exr()
+                    to_exr(compression)
                         .compress_image_section_to_le(header, ne, bounds)
                         .map_err(|e| format!("EXR encoding failed: {e}"))
                 }
@@ -492,7 +490,7 @@ mod tests {
             let img = read_back(&first);
             let layer = &img.layer_data;
             assert_eq!(layer.size, Vec2(w as usize, h as usize));
-            assert_eq!(layer.encoding.compression, c.to_exr());
+            assert_eq!(layer.encoding.compression, to_exr(c));
             assert_eq!(layer.encoding.line_order, LineOrder::Increasing);
             assert_eq!(layer.channel_data.list.len(), 1);
             let ch = &layer.channel_data.list[0];
@@ -583,7 +581,7 @@ mod tests {
                     let bytes = encode_exr_with(w as u32, h as u32, px, &[], c).unwrap();
                     let img = read_back(&bytes);
                     assert_eq!(img.layer_data.size, Vec2(w, h));
-                    assert_eq!(img.layer_data.encoding.compression, c.to_exr());
+                    assert_eq!(img.layer_data.encoding.compression, to_exr(c));
                     assert!(same_bits(&decode_y(&bytes), px), "{w}×{h} {c:?}");
                 }
             }
@@ -602,7 +600,7 @@ mod tests {
                     (w, h),
                     LayerAttributes::default(),
                     Encoding {
-                        compression: c.to_exr(),
+                        compression: to_exr(c),
                         blocks: Blocks::ScanLines,
                         line_order: LineOrder::Increasing,
                     },
@@ -612,14 +610,13 @@ mod tests {
                     )])),
                 );
                 let header = Image::from_layer(layer).write().infer_meta_data().remove(0);
-                let lines = c.to_exr().scan_lines_per_block();
+                let lines = to_exr(c).scan_lines_per_block();
                 for y in (0..h).step_by(lines) {
                     let rows = lines.min(h - y);
                     let block = &px[y * w..(y + rows) * w];
                     let ne: Vec<u8> = block.iter().flat_map(|v| v.to_ne_bytes()).collect();
                     let bounds = IntegerBounds::new(Vec2(0, y as i32), Vec2(w, rows));
-                    let theirs = c
-                        .to_exr()
+                    let theirs = to_exr(c)
                         .compress_image_section_to_le(&header, ne, bounds)
                         .unwrap();
                     let ours = zip_block(block);

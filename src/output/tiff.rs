@@ -28,16 +28,14 @@ use std::io::Cursor;
 
 pub use crate::scenario::TiffCompression;
 
-impl TiffCompression {
-    /// The `tiff` crate's settings for the compressions it encodes; `None` for Deflate, whose
-    /// strips are compressed here ([`encode_deflate`]).
-    fn settings(self) -> Option<(Compression, Predictor)> {
-        match self {
-            TiffCompression::None => Some((Compression::Uncompressed, Predictor::None)),
-            TiffCompression::Lzw => Some((Compression::Lzw, Predictor::Horizontal)),
-            TiffCompression::Deflate => None,
-            TiffCompression::Packbits => Some((Compression::Packbits, Predictor::None)),
-        }
+/// The `tiff` crate's settings for the compressions it encodes; `None` for Deflate, whose strips
+/// are compressed here ([`encode_deflate`]).
+fn settings(compression: TiffCompression) -> Option<(Compression, Predictor)> {
+    match compression {
+        TiffCompression::None => Some((Compression::Uncompressed, Predictor::None)),
+        TiffCompression::Lzw => Some((Compression::Lzw, Predictor::Horizontal)),
+        TiffCompression::Deflate => None,
+        TiffCompression::Packbits => Some((Compression::Packbits, Predictor::None)),
     }
 }
 
@@ -73,7 +71,7 @@ pub fn encode_tiff(
     facts: &TiffFacts,
 ) -> Result<Vec<u8>, String> {
     check(width, height, pixels, facts)?;
-    match compression.settings() {
+    match settings(compression) {
         Some((compression, predictor)) => {
             encode_with(width, height, pixels, compression, predictor, facts)
         }

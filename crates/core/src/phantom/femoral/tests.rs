@@ -391,7 +391,7 @@ fn the_component_is_deterministic() {
 
 #[test]
 fn the_shipped_model_matches_the_code() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     let path = root.join("scenarios/models/femoral_component.glb");
     let expected = crate::phantom::mesh_io::glb_bytes(&component().mesh).unwrap();
     // The golden scenarios keep their own copy, inside their folder (meshes are read only from a

@@ -78,7 +78,8 @@ mod tests {
     #[test]
     fn huge_lengths_and_angles_are_errors_at_their_key() {
         let base = std::fs::read_to_string(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mutation/base.toml"),
+            std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+                .join("tests/mutation/base.toml"),
         )
         .unwrap();
         let text = base

@@ -358,7 +358,7 @@ fn sha256_hex(bytes: &[u8]) -> String {
 #[test]
 fn the_femur_is_deterministic_and_the_shipped_models_match_the_code() {
     assert_eq!(&distal_femur(), femur());
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     for (file, mesh) in [
         (
             "scenarios/models/distal_femur_cortical.glb",

@@ -5,7 +5,7 @@ use super::Spectrum;
 
 /// The shipped table: `anode_angle_deg kvp photons…` per line (tab-separated), `#` comments;
 /// photons per mm² per mAs at 1000 mm in the 1 keV bins [1, 2), …, [kvp − 1, kvp) keV.
-const TABLE: &str = include_str!("../../data/spectra/tungsten.tsv");
+const TABLE: &str = include_str!("../../../../data/spectra/tungsten.tsv");
 
 /// The lowest tabulated tube voltage, kV.
 pub const TUBE_KVP_MIN: u32 = 40;

@@ -7,7 +7,7 @@
 
 use super::Spectrum;
 
-const CHECKS: &str = include_str!("../../data/spectra/checks.tsv");
+const CHECKS: &str = include_str!("../../../../data/spectra/checks.tsv");
 
 /// Worst per-bin relative error of linear interpolation between tabulated angles, for bins holding
 /// at least [`BIN_FLOOR`] of the peak bin, as measured by `regen.py` (README: 0.66 %).

@@ -24,9 +24,10 @@ pub fn symmetric(rng: &mut ChaCha8Rng, half_width: f64) -> f64 {
     (2.0 * uniform01(rng) - 1.0) * half_width
 }
 
-/// Standard normal samples by Box–Muller over the stream of `label` (for tests).
-#[cfg(test)]
-pub(crate) fn gaussians(label: &str, n: usize) -> Vec<f64> {
+/// Standard normal samples by Box–Muller over the stream of `label` (for tests, here and in the
+/// crates above).
+#[doc(hidden)]
+pub fn gaussians(label: &str, n: usize) -> Vec<f64> {
     let mut rng = stream(label);
     (0..n)
         .map(|_| {

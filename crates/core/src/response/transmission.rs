@@ -273,9 +273,11 @@ mod tests {
 
     #[test]
     fn conventions_state_the_constants() {
-        let doc =
-            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/CONVENTIONS.md"))
-                .expect("docs/CONVENTIONS.md");
+        let doc = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../docs/CONVENTIONS.md"
+        ))
+        .expect("docs/CONVENTIONS.md");
         for text in [
             "relative error ≤ 10⁻¹⁰",
             "more than 2¹⁶ intervals or more than one per 16 pixels",

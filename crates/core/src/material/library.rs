@@ -8,7 +8,7 @@ use serde::Deserialize;
 use super::mixture::Material;
 
 /// The library: `[[material]]` tables with name, density_g_cm3, composition and source.
-const MATERIALS_TOML: &str = include_str!("../../data/attenuation/materials.toml");
+const MATERIALS_TOML: &str = include_str!("../../../../data/attenuation/materials.toml");
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -7,9 +7,9 @@ use std::sync::OnceLock;
 use super::interp::Table;
 
 /// `z, symbol, name, atomic_mass, density_g_cm3`, one element a line, Z = 1..92 in order.
-const ELEMENTS_TSV: &str = include_str!("../../data/attenuation/elements.tsv");
+const ELEMENTS_TSV: &str = include_str!("../../../../data/attenuation/elements.tsv");
 /// `z, energy_kev, mu_rho_cm2_g`: the μ/ρ tables of all elements, each in non-decreasing energy.
-const MU_RHO_TSV: &str = include_str!("../../data/attenuation/mu_rho.tsv");
+const MU_RHO_TSV: &str = include_str!("../../../../data/attenuation/mu_rho.tsv");
 
 /// The highest atomic number in the tables (uranium).
 const Z_MAX: u8 = 92;

@@ -144,7 +144,8 @@ fn a_diagonal_through_pixel_centres_is_filled_once() {
 
 /// The shipped femoral component (`scenarios/models/femoral_component.glb`), closed, wound outward.
 pub(in crate::trace) fn femoral_mesh() -> TriMesh {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/models/femoral_component.glb");
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+        .join("scenarios/models/femoral_component.glb");
     let mut mesh = mesh_io::load_mesh(&path, 1000.0).expect("the femoral component loads");
     mesh.check_closed()
         .expect("the femoral component is closed");

@@ -1,6 +1,6 @@
 //! Shards: one scenario's run list split over several machines (SLURM array tasks, Kubernetes
 //! Indexed Job pods), each writing only its runs into its own folder, merged afterwards
-//! ([`crate::output::merge`]) into the folder one machine would have written.
+//! (`rsasim::output::merge`, in the crate above) into the folder one machine would have written.
 //!
 //! # The split
 //!

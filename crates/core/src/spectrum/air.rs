@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 /// The shipped table: `energy_kev muen_over_rho_cm2_per_g` per line, `#` comments; an absorption
 /// edge is two rows at the same energy (below, then above).
-const TABLE: &str = include_str!("../../data/spectra/air_muen.tsv");
+const TABLE: &str = include_str!("../../../../data/spectra/air_muen.tsv");
 
 /// (energy keV, μ_en/ρ cm²/g) rows of [`TABLE`], parsed once.
 fn rows() -> &'static [(f64, f64)] {

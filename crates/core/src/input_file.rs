@@ -2,7 +2,7 @@
 //! reading. A file is opened without blocking (a FIFO cannot hang the program) and, inside a
 //! received folder, without following a final symbolic link; the opened file must be a regular
 //! file within a size cap, and it is never read beyond the cap. Received folders add their own
-//! rules on top ([`crate::output::received`]); scenario files and the files they pull in add the
+//! rules on top (`rsasim::output::received`, in the crate above); scenario files and the files they pull in add the
 //! confinement of [`crate::phantom::confine`].
 
 use std::fs::{File, Metadata};
