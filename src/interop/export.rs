@@ -28,10 +28,10 @@ use crate::geometry::rotation_from_rows;
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};
 use crate::output::decode::read_image;
+use crate::output::exam::{Setup, load_setup};
 use crate::output::received::ReceivedFolder;
 use crate::output::tiff::{TiffCompression, TiffFacts, encode_tiff};
 use crate::output::{Measured, Truth};
-use crate::reconstruct::exam::{Setup, load_setup};
 
 /// The program the export is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod commit;
 pub mod decode;
 pub mod dicom;
+pub mod exam;
 pub mod exr;
 pub mod exr_deflate;
 pub mod folder_readme;

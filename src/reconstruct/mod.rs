@@ -11,7 +11,6 @@ pub mod density;
 pub mod detect;
 pub mod edge;
 pub mod edge_model;
-pub mod exam;
 pub mod model;
 pub mod model_outline;
 pub mod overprojection;
@@ -28,6 +27,7 @@ use rayon::prelude::*;
 
 use crate::diagnostic::Diagnostic;
 use crate::output::atomic::write_atomic;
+use crate::output::exam;
 
 /// How `reconstruct` calibrates each beamline from the box beads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

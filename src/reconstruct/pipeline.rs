@@ -15,7 +15,6 @@ use super::density::{Density, Reading, density};
 use super::detect::{Blob, blobs};
 use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline, nominal_blur_px};
 use super::edge_model::{EdgeModel, MetalTransmission};
-use super::exam::{Setup, TableBead};
 use super::model::View;
 use super::model_outline::OutlineModel;
 use super::model_outline::OutlineSegment;
@@ -28,6 +27,7 @@ use super::{Method, ModelMethod};
 use crate::expand::{DetectorState, PhantomState};
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
 use crate::output::decode::read_image;
+use crate::output::exam::{Setup, TableBead};
 use crate::output::measured::{
     FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
     OccludedBead,
