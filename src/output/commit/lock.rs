@@ -63,9 +63,12 @@ impl OutputLock {
 
 impl Drop for OutputLock {
     /// Removes the lock file while the lock is still held (the file is closed, and the lock let
-    /// go, only after this runs).
+    /// go, only after this runs), and only if the path still names the file this lock opened: a
+    /// file someone else put there meanwhile is not rsasim's to remove.
     fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
+        if still_named(&self._file, &self.path) {
+            let _ = std::fs::remove_file(&self.path);
+        }
     }
 }
 
@@ -136,6 +139,17 @@ mod tests {
             !still_named(&stale, &path),
             "a new file at the path is another file"
         );
+    }
+
+    #[test]
+    fn a_file_put_in_place_of_the_lock_file_is_not_removed() {
+        let root = tempfile::tempdir().unwrap();
+        let lock = OutputLock::acquire(root.path(), "out").unwrap();
+        let path = root.path().join(".out.rsasim-lock");
+        std::fs::remove_file(&path).unwrap();
+        std::fs::write(&path, "someone else's").unwrap();
+        drop(lock);
+        assert_eq!(std::fs::read(&path).unwrap(), b"someone else's");
     }
 
     #[cfg(unix)]
