@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The files whose changes make a build differ from its commit.
-const BUILD_INPUTS: &[&str] = &["src", "Cargo.toml", "Cargo.lock", "build.rs"];
+/// Every crate of the workspace goes into the binary, so its folder is among them.
+const BUILD_INPUTS: &[&str] = &["src", "crates", "Cargo.toml", "Cargo.lock", "build.rs"];
 
 fn git(dir: &Path, args: &[&str]) -> Option<String> {
     let out = Command::new("git")

@@ -16,7 +16,7 @@ use rsasim::shard::ShardRequest;
 #[derive(Debug, Parser)]
 #[command(
     name = "rsasim",
-    version = rsasim::output::VERSION_LINE,
+    version = rsasim::build_info::VERSION_LINE,
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]

@@ -342,7 +342,7 @@ fn new_manifest(plan: &Plan, files: Vec<ManifestFile>) -> Manifest {
         format: output::MANIFEST_FORMAT.into(),
         manifest_sha256: String::new(),
         program: output::program(),
-        build: Some(output::build()),
+        build: Some(crate::build_info::build()),
         output_format: output::OUTPUT_FORMAT,
         layout: None,
         scenario: s.name.clone(),

@@ -1,6 +1,6 @@
 //! The EXR files of a simulated protocol, read by two independent readers: the `exr` crate
 //! decodes every pixel equal to the TIFF written beside it, and every ZIP block's zlib stream
-//! (rsasim's own encoder, `src/output/exr_deflate`) inflates by miniz_oxide to exactly OpenEXR's
+//! (rsasim's own encoder, `crates/files/src/output/exr_deflate`) inflates by miniz_oxide to exactly OpenEXR's
 //! predicted bytes of those pixels.
 
 use crate::common;

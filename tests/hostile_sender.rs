@@ -1092,6 +1092,35 @@ fn merge_refuses_a_shard_claiming_a_huge_shard_count() {
     );
 }
 
+/// A shard manifest (rehashed) that lists `/etc/passwd`: `merge` refused it but printed
+/// `/etc/passwd` as the file in error (found by the mutation campaign, seed 19549). The error
+/// names the shard's manifest and the field, never the path it lists.
+#[test]
+fn merge_blames_the_manifest_for_a_listed_path_outside_the_shard() {
+    let case = Case::new();
+    copy_tree(&protocol().shards, &case.join("shards"));
+    let shard = case.join("shards/shard-0-of-2");
+    reseal_manifest(&shard, |m| m.files[0].path = "/etc/passwd".into());
+    let ran = case.refused(
+        &[
+            "merge",
+            shard.to_str().unwrap(),
+            &case.s("shards/shard-1-of-2"),
+            "--out",
+            &case.s("merged"),
+        ],
+        &Names {
+            files: &["shard-0-of-2/manifest.json"],
+            fields: &["files[].path"],
+        },
+    );
+    assert!(
+        !ran.stderr.contains("error: /etc/passwd"),
+        "{}",
+        ran.describe()
+    );
+}
+
 /// Class 3: the same in a sharded sweep: `sweep --merge` of a point whose only split claims
 /// 100000000000 shards.
 #[test]

@@ -10,8 +10,8 @@ use rsasim::evaluate::table::Report;
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
 
 #[test]
-fn the_reconstruct_module_never_names_the_truth() {
-    let dir = root().join("src/reconstruct");
+fn the_reconstruct_crate_never_names_the_truth() {
+    let dir = root().join("crates/reconstruct/src");
     let mut stack = vec![dir];
     let mut files = 0;
     while let Some(d) = stack.pop() {

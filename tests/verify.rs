@@ -179,7 +179,7 @@ fn evaluate_states_that_the_truth_was_verified() {
 
 #[test]
 fn the_manifest_and_version_name_the_build() {
-    let build = rsasim::output::build();
+    let build = rsasim::build_info::build();
     let (_tmp, out) = output();
     let manifest: rsasim::output::Manifest =
         serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();

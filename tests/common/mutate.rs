@@ -1179,7 +1179,7 @@ pub mod received {
     }
 
     /// Refills `"manifest_sha256"` with the SHA-256 of the bytes with its value emptied, as
-    /// `src/output/manifest.rs` defines it (and as anyone can). None when the field is gone.
+    /// `crates/files/src/output/manifest.rs` defines it (and as anyone can). None when the field is gone.
     pub fn reseal(bytes: &[u8]) -> Option<Vec<u8>> {
         const KEY: &[u8] = b"\"manifest_sha256\": \"";
         let start = bytes.windows(KEY.len()).position(|w| w == KEY)? + KEY.len();

@@ -25,6 +25,10 @@
 //! 4. **Uniform doubles.** [`uniform`] maps one `u64` `x` to `(x >> 11) · 2⁻⁵³`, a multiple of
 //!    2⁻⁵³ in `[0, 1)` (exact in binary64).
 //!
+//! Steps 1 to 4 are the recipe of every random stream of rsasim ([`crate::random`]: the key,
+//! [`crate::random::keyed_stream`], [`crate::random::uniform01`]); this module names the noise's
+//! keys.
+//!
 //! The electronic (read-out) noise of attenuation mode has its own keys, made the same way from
 //! the label `rsasim/electronic/v1/{seed}/{level}/{run}/{exposure}/{detector}`
 //! ([`NoiseKey::derive_electronic`]), with the same row streams; how its uniforms become normal
@@ -35,8 +39,10 @@
 //! [`super::poisson`]; which pixel takes which sample is in [`super`].
 
 use rand_chacha::ChaCha8Rng;
-use rand_core::{Rng, SeedableRng};
-use sha2::{Digest, Sha256};
+
+use crate::random;
+/// One uniform double in `[0, 1)` from one `u64`: `(next_u64() >> 11) as f64 · 2⁻⁵³`.
+pub use crate::random::uniform01 as uniform;
 
 /// The 32-byte ChaCha key of one noisy image (one scenario seed, noise level, run, exposure and
 /// detector). See the module documentation for the exact derivation.
@@ -77,7 +83,7 @@ impl NoiseKey {
 
     /// SHA-256 of the UTF-8 bytes of `label`.
     fn of_label(label: &str) -> NoiseKey {
-        NoiseKey(Sha256::digest(label.as_bytes()).into())
+        NoiseKey(random::key(label))
     }
 
     /// Wraps raw key bytes (for tests and for tools that replay a recorded key).
@@ -98,9 +104,7 @@ impl NoiseKey {
     /// A fresh generator for image row `row`: `ChaCha8Rng::from_seed(key)` then
     /// `set_stream(row)`, positioned at the start of the stream.
     pub fn row_rng(&self, row: u32) -> ChaCha8Rng {
-        let mut rng = ChaCha8Rng::from_seed(self.0);
-        rng.set_stream(u64::from(row));
-        rng
+        random::keyed_stream(self.0, u64::from(row))
     }
 }
 
@@ -108,13 +112,6 @@ impl std::fmt::Debug for NoiseKey {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "NoiseKey({})", self.to_hex())
     }
-}
-
-/// One uniform double in `[0, 1)` from one `u64`: `(next_u64() >> 11) as f64 · 2⁻⁵³`.
-#[inline]
-pub fn uniform(rng: &mut impl Rng) -> f64 {
-    const SCALE: f64 = 1.0 / (1u64 << 53) as f64;
-    (rng.next_u64() >> 11) as f64 * SCALE
 }
 
 /// A test generator that returns the same `u64` every time (for checking [`uniform`]'s edges).
@@ -138,6 +135,8 @@ impl rand_core::TryRng for FixedRng {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand_core::Rng;
+    use sha2::{Digest, Sha256};
 
     /// Independent scalar ChaCha8 block function (RFC 7539 quarter round, 8 rounds, 64-bit
     /// counter and 64-bit nonce), used to check the documented derivation against rand_chacha.

@@ -5,7 +5,7 @@
 //! simulated patients. Every exam of every patient is one run: the whole limb is repositioned by
 //! the reference phantom's own `randomize` ranges (tubes and detectors by theirs), and every
 //! implant segment rides on the reference segment, displaced by the exam's migration. The README
-//! ("Clinical studies") states every convention; `src/expand/study.rs` turns this into runs.
+//! ("Clinical studies") states every convention; `crates/core/src/expand/study.rs` turns this into runs.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
