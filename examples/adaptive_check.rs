@@ -56,21 +56,22 @@ fn main() {
             let (frame, source) = (det.frame(), run.source_of(det));
             let beam = setup.beam(&frame, source, 1.0);
             let detector = setup.detector(&beam, det.i_max());
+            let exposed = rsasim::attenuation::Exposure {
+                setup,
+                parts: &ps,
+                frame: &frame,
+                source_mm: source,
+            };
             sampling.adaptive = false;
             let t = Instant::now();
-            let full = sampled::expected(setup, &ps, &frame, source, &beam, &detector, &sampling);
+            let full = sampled::expected(&exposed, &beam, &detector, &sampling);
             let t_full = t.elapsed().as_secs_f64();
             sampling.adaptive = true;
             let t = Instant::now();
-            let fast = sampled::expected_adaptive_of(
-                setup, &ps, &frame, source, &beam, &detector, &sampling,
-            );
+            let fast = sampled::expected_adaptive_of(&exposed, &beam, &detector, &sampling);
             let t_fast = t.elapsed().as_secs_f64();
             let sharp = sampled::expected(
-                setup,
-                &ps,
-                &frame,
-                source,
+                &exposed,
                 &beam,
                 &detector,
                 &Sampling {

@@ -125,11 +125,14 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         &det.id,
     );
     let render = |parts: &[Part], keep: bool, factor: f64| {
-        attenuation::render(
+        let exposed = attenuation::Exposure {
             setup,
             parts,
-            &frame,
-            source,
+            frame: &frame,
+            source_mm: source,
+        };
+        attenuation::render(
+            &exposed,
             factor,
             det.i_max(),
             &key,

@@ -732,11 +732,14 @@ fn write_run(
                         &det.id,
                     );
                     let unsharp = setup.unsharpness(&det.id);
-                    let image = attenuation::render(
+                    let exposed = attenuation::Exposure {
                         setup,
                         parts,
-                        &frame,
-                        source,
+                        frame: &frame,
+                        source_mm: source,
+                    };
+                    let image = attenuation::render(
+                        &exposed,
                         run.exposure_factor.unwrap_or(1.0),
                         det.i_max(),
                         &key,

@@ -20,6 +20,7 @@ mod geometry;
 mod golden;
 mod hostile_meshes;
 mod hostile_sender;
+mod house;
 mod interop;
 mod limits;
 mod mesh_formats;

@@ -198,7 +198,15 @@ fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
     with_inputs(plan, |setup, parts, frame, source, beam, detector| {
         rsasim::attenuation::sampled::expected(
-            setup, parts, frame, source, beam, detector, &sampling,
+            &rsasim::attenuation::Exposure {
+                setup,
+                parts,
+                frame,
+                source_mm: source,
+            },
+            beam,
+            detector,
+            &sampling,
         )
     })
 }
@@ -333,12 +341,28 @@ fn adaptive_sampling_stays_within_its_bound_of_full_sampling() {
     assert!(sampling.adaptive);
     let (fast, sharp) = with_inputs(&plan, |setup, parts, frame, source, beam, detector| {
         let fast = rsasim::attenuation::sampled::expected_adaptive_of(
-            setup, parts, frame, source, beam, detector, &sampling,
+            &rsasim::attenuation::Exposure {
+                setup,
+                parts,
+                frame,
+                source_mm: source,
+            },
+            beam,
+            detector,
+            &sampling,
         );
         let mut point = Sampling::from_imaging(&rsasim::scenario::Imaging::default());
         point.adaptive = false;
         let sharp = rsasim::attenuation::sampled::expected(
-            setup, parts, frame, source, beam, detector, &point,
+            &rsasim::attenuation::Exposure {
+                setup,
+                parts,
+                frame,
+                source_mm: source,
+            },
+            beam,
+            detector,
+            &point,
         );
         (fast, sharp)
     });

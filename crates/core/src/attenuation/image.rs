@@ -2,9 +2,6 @@
 //! material net of nesting (a part's length is added to its material and taken from the
 //! material it displaces), then the detector response with quantum noise.
 
-use glam::DVec3;
-
-use crate::geometry::DetectorFrame;
 use crate::noise::NoiseKey;
 use rayon::prelude::*;
 
@@ -12,7 +9,7 @@ use crate::response::{self, Layer, Unsharpness};
 use crate::sampling::Sampling;
 use crate::trace::Object;
 
-use super::scene::Part;
+use super::scene::{Exposure, Part};
 use super::setup::Setup;
 use super::shadow::{layers_of, scene_of, shadows_of};
 
@@ -76,18 +73,20 @@ impl Formation<'_> {
 /// spot the image itself is the average over the pixel samples and sub-sources
 /// ([`super::sampled`]), and with scatter, blur or electronic noise the detector applies them
 /// ([`response::render_expected`]).
-#[allow(clippy::too_many_arguments)]
 pub fn render(
-    setup: &Setup,
-    parts: &[Part],
-    frame: &DetectorFrame,
-    source_mm: DVec3,
+    exposure: &Exposure,
     factor: f64,
     i_max: u16,
     key: &NoiseKey,
     keep_lengths: bool,
     formation: Formation,
 ) -> Result<AttenuationImage, String> {
+    let Exposure {
+        setup,
+        parts,
+        frame,
+        source_mm,
+    } = *exposure;
     let [w, h] = frame.pixels.map(|n| n as usize);
     // Parts in parallel (a mesh is scan-converted on one thread), each part's lengths its own.
     let shadows = shadows_of(parts, frame, source_mm);
@@ -105,26 +104,15 @@ pub fn render(
             response::expected(&beam, &detector, &scene)
         } else if formation.sampling.adaptive {
             super::sampled::expected_adaptive(
-                setup,
-                parts,
+                exposure,
                 &shadows,
-                frame,
-                source_mm,
                 &beam,
                 &detector,
                 formation.sampling,
                 response::expected(&beam, &detector, &scene),
             )
         } else {
-            super::sampled::expected(
-                setup,
-                parts,
-                frame,
-                source_mm,
-                &beam,
-                &detector,
-                formation.sampling,
-            )
+            super::sampled::expected(exposure, &beam, &detector, formation.sampling)
         };
         response::render_expected(
             &detector,

@@ -13,5 +13,5 @@ pub mod setup;
 mod shadow;
 
 pub use image::{AttenuationImage, BeadVisibility, Formation, render};
-pub use scene::{Part, parts};
+pub use scene::{Exposure, Part, parts};
 pub use setup::Setup;

@@ -16,21 +16,23 @@ use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips, window};
 use crate::sampling::{Sampling, adaptive};
 use crate::trace::{Object, PathLengths, Projected};
 
-use super::scene::Part;
-use super::setup::Setup;
+use super::scene::{Exposure, Part};
 use super::shadow::{layers_of, scene_of, shadows_of};
 
 /// The expected image of `parts` on `frame` from the spot centred at `source_mm`, for the
 /// detector's photons `beam` (per pixel of `frame`) and `detector`.
 pub fn expected(
-    setup: &Setup,
-    parts: &[Part],
-    frame: &DetectorFrame,
-    source_mm: DVec3,
+    exposure: &Exposure,
     beam: &Beam,
     detector: &DetectorModel,
     sampling: &Sampling,
 ) -> Expected {
+    let Exposure {
+        setup,
+        parts,
+        frame,
+        source_mm,
+    } = *exposure;
     let [w, h] = frame.pixels.map(|n| n as usize);
     let s = sampling.samples_per_side.max(1) as usize;
     let mut out = Expected {
@@ -71,22 +73,23 @@ pub fn expected(
 /// from the spot's centre), then the refined pixels; what `super::render` does with the sharp
 /// path lengths it already has.
 pub fn expected_adaptive_of(
-    setup: &Setup,
-    parts: &[Part],
-    frame: &DetectorFrame,
-    source_mm: DVec3,
+    exposure: &Exposure,
     beam: &Beam,
     detector: &DetectorModel,
     sampling: &Sampling,
 ) -> Expected {
+    let Exposure {
+        setup,
+        parts,
+        frame,
+        source_mm,
+    } = *exposure;
     let shadows = shadows_of(parts, frame, source_mm);
     let layers = layers_of(parts, &shadows);
     let fluence = PointSourceFluence::new(frame, source_mm);
     let scene = scene_of(setup, frame, &layers, &fluence);
     let sharp = response::expected(beam, detector, &scene);
-    expected_adaptive(
-        setup, parts, &shadows, frame, source_mm, beam, detector, sampling, sharp,
-    )
+    expected_adaptive(exposure, &shadows, beam, detector, sampling, sharp)
 }
 
 /// The same image by adaptive sampling (`crate::sampling::adaptive`): `sharp` is the expected
@@ -95,18 +98,20 @@ pub fn expected_adaptive_of(
 /// their rays, computed in tiles of [`adaptive::TILE_PX`] pixels (sub-sources in order, then
 /// samples row by row, as [`expected`]); every other pixel keeps its sharp value. The heel factor
 /// then multiplies all three images, as in [`expected`].
-#[allow(clippy::too_many_arguments)]
 pub fn expected_adaptive(
-    setup: &Setup,
-    parts: &[Part],
+    exposure: &Exposure,
     shadows: &[Option<PathLengths>],
-    frame: &DetectorFrame,
-    source_mm: DVec3,
     beam: &Beam,
     detector: &DetectorModel,
     sampling: &Sampling,
     sharp: Expected,
 ) -> Expected {
+    let Exposure {
+        parts,
+        frame,
+        source_mm,
+        ..
+    } = *exposure;
     let [w, h] = frame.pixels.map(|n| n as usize);
     let s = sampling.samples_per_side.max(1);
     let footprint = footprint(parts, frame, source_mm, sampling);
@@ -150,9 +155,8 @@ pub fn expected_adaptive(
                 .par_iter_mut()
                 .zip(&tiles)
                 .for_each(|(sums, &(i0, j0))| {
-                    add_tile(
-                        setup, parts, frame, beam, detector, &seen, &mask, s, i0, j0, sums,
-                    )
+                    let tile = Tile { i0, j0, s };
+                    add_tile(exposure, beam, detector, &seen, &mask, tile, sums)
                 });
         }
         let t = adaptive::TILE_PX as usize;
@@ -187,23 +191,35 @@ struct Seen<'a> {
     projected: &'a [Projected<'a>],
 }
 
-/// Adds one sub-source's share of the mean over all rays to the pixels of the tile at (`i0`,
-/// `j0`): quanta, energy and open signal in `sums`, row-major over the tile. Only pixels of
-/// `mask` are traced; the others get their open-field value (not used).
-#[allow(clippy::too_many_arguments)]
+/// One tile of [`adaptive::TILE_PX`] pixels: its first pixel (`i0`, `j0`) and the samples per
+/// side of a pixel `s`.
+#[derive(Clone, Copy)]
+struct Tile {
+    i0: u32,
+    j0: u32,
+    s: u32,
+}
+
+/// Adds one sub-source's share of the mean over all rays to the pixels of `tile`: quanta, energy
+/// and open signal in `sums`, row-major over the tile. Only pixels of `mask` are traced; the
+/// others get their open-field value (not used). The sub-source is `seen`'s, not the exposure's
+/// spot centre.
 fn add_tile(
-    setup: &Setup,
-    parts: &[Part],
-    frame: &DetectorFrame,
+    exposure: &Exposure,
     beam: &Beam,
     detector: &DetectorModel,
     seen: &Seen,
     mask: &[bool],
-    s: u32,
-    i0: u32,
-    j0: u32,
+    tile: Tile,
     sums: &mut [Vec<f64>; 3],
 ) {
+    let Exposure {
+        setup,
+        parts,
+        frame,
+        ..
+    } = *exposure;
+    let Tile { i0, j0, s } = tile;
     let [w, h] = frame.pixels;
     let t = adaptive::TILE_PX;
     let (tw, th) = (t.min(w - i0), t.min(h - j0));

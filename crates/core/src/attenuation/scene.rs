@@ -4,13 +4,26 @@
 
 use std::sync::Arc;
 
+use glam::DVec3;
+
 use crate::expand::{ExposureState, Run};
+use crate::geometry::DetectorFrame;
 use crate::phantom::{PhantomModel, VolumeShape};
 use crate::scenario::Scenario;
 use crate::trace::{MeshBvh, Object};
 
 use super::containment::{self, Placement};
 use super::setup::Setup;
+
+/// One exposure on one detector, ready to form: the resolved set-up, the solids in the beam (in
+/// order, [`parts`]), the detector's frame and the focal spot's centre.
+#[derive(Clone, Copy)]
+pub struct Exposure<'a> {
+    pub setup: &'a Setup,
+    pub parts: &'a [Part<'a>],
+    pub frame: &'a DetectorFrame,
+    pub source_mm: DVec3,
+}
 
 /// One solid in the beam.
 pub struct Part<'a> {

@@ -33,7 +33,6 @@
 use super::Scene;
 use super::bins::Bins;
 use super::exp::exp;
-use super::transmission::Transmission;
 
 /// Pixels per block of the bin loop: the bins run innermost over a block of this many pixels
 /// held in registers (two AVX2 vectors of four lanes), so the exponent, the exponential and both
@@ -58,22 +57,20 @@ pub(crate) struct RowScratch {
 /// pixel of row `j`, with the row's fluence `fluence`, written into `quanta` (and `energy`),
 /// each `W` long.
 ///
-/// `active` lists the materials with layers, ascending, and `tables` their transmission tables
-/// (a pixel crossing one material with a table takes its values from it; module
-/// [`super::transmission`]). A material's length at a pixel is the sum of its layers
+/// `prep` holds the spectrum's bins, the materials with layers (`active`, ascending) and their
+/// transmission tables (a pixel crossing one material with a table takes its values from it;
+/// module [`super::transmission`]). A material's length at a pixel is the sum of its layers
 /// ([`super::material_row`]), a negative sum counting as 0.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn row_expected(
-    bins: &Bins,
+pub(super) fn row_expected(
+    prep: &super::Prepared,
     scene: &Scene,
-    active: &[usize],
-    tables: &[Option<Transmission>],
     j: usize,
     fluence: &[f64],
     quanta: &mut [f64],
     mut energy: Option<&mut [f64]>,
     s: &mut RowScratch,
 ) {
+    let (bins, active, tables) = (&prep.bins, &prep.active[..], &prep.tables[..]);
     let w = scene.width;
     // Open field everywhere first.
     for (q, &f) in quanta.iter_mut().zip(fluence) {

@@ -458,17 +458,7 @@ impl Prepared {
     ) {
         fluence.resize(scene.width, 0.0);
         scene.fluence.row(j, fluence);
-        row_expected(
-            &self.bins,
-            scene,
-            &self.active,
-            &self.tables,
-            j,
-            fluence,
-            quanta,
-            energy,
-            rows,
-        );
+        row_expected(self, scene, j, fluence, quanta, energy, rows);
     }
 }
 
