@@ -6,7 +6,7 @@
 //! - `calibration`, `model`, `sphere`: one image each.
 //!   - `binary_1t`: `trace::render_binary` (the default projector) in a 1-thread rayon pool.
 //!   - `traced_1t`: `trace::render_binary_traced` (the BVH ray tracer), 1 thread.
-//!   - `binary_noise`: a finished noisy image, `simulate::noisy_image` (the projection and the
+//!   - `binary_noise`: a finished noisy image, `binary::sharp_noisy_image` (the projection and the
 //!     noise field at once, then overlaid), with the default rayon pool (all cores), as the
 //!     protocol makes each image.
 //! - `model` also has `mesh_binary_1t` and `mesh_traced_1t`: the femoral component's mesh alone,
@@ -28,8 +28,8 @@ use std::time::Duration;
 
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use rayon::ThreadPool;
+use rsasim::noise;
 use rsasim::trace::{Object, path_lengths, render_binary, render_binary_traced};
-use rsasim::{noise, simulate};
 use scenes::{Scenes, covered_fraction};
 
 fn one_thread() -> ThreadPool {
@@ -63,7 +63,7 @@ fn image_group(c: &mut Criterion, s: &Scenes, pool: &ThreadPool, name: &str, obj
     });
     g.bench_function("binary_noise", |b| {
         b.iter(|| {
-            simulate::noisy_image(
+            rsasim::binary::sharp_noisy_image(
                 &s.frame,
                 black_box(s.source),
                 objects,

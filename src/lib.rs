@@ -6,8 +6,8 @@
 //! the reference RSA program, evaluation, sweeps and the command line.
 
 pub use rsasim_core::{
-    attenuation, cost, diagnostic, expand, geometry, input_file, material, noise, phantom, random,
-    response, sampling, scenario, shard, spectrum, trace,
+    attenuation, binary, cost, diagnostic, expand, geometry, input_file, material, noise, phantom,
+    random, response, sampling, scenario, shard, spectrum, trace,
 };
 pub use rsasim_evaluate as evaluate;
 pub use rsasim_files::{interop, output};

@@ -12,8 +12,7 @@ use crate::attenuation::{self, Setup};
 use crate::cost::{self, Cost};
 use crate::diagnostic::{Diagnostic, KeyPath};
 use crate::expand::{self, Run};
-use crate::geometry::DetectorFrame;
-use crate::noise::{self, NoiseKey};
+use crate::noise::NoiseKey;
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};
 use crate::output::dicom::describe::{ImageRef, NominalView, describe};
@@ -30,7 +29,6 @@ use crate::scenario::hex;
 use crate::scenario::{self, ImageFile, ImageFormat, LoadedScenario, Scenario};
 use crate::shard::ShardSpec;
 use crate::trace::{self, MeshBvh, Object};
-use glam::DVec3;
 use sha2::{Digest, Sha256};
 
 /// A scenario checked run by run, with its cost: what `validate` and `expand` need. Its runs
@@ -635,27 +633,6 @@ struct RunFiles {
 /// Longer side of a PNG preview, pixels.
 pub const PREVIEW_MAX_SIDE_PX: u32 = 1024;
 
-/// One noisy binary-mode image: the clean projection ([`trace::render_binary`]) and the noise
-/// field ([`noise::noise_field`]) computed at the same time on the rayon pool, then overlaid.
-/// Byte for byte the image of `render_binary` followed by [`noise::add_noise`], in less wall time
-/// when cores are free (the projection is single-threaded, the noise row-parallel).
-pub fn noisy_image(
-    frame: &DetectorFrame,
-    source_mm: DVec3,
-    objects: &[Object],
-    noise_level: f64,
-    i_max: u16,
-    key: &NoiseKey,
-) -> Vec<u16> {
-    let [w, h] = frame.pixels.map(|n| n as usize);
-    let (clean, mut field) = rayon::join(
-        || trace::render_binary(frame, source_mm, objects, i_max),
-        || noise::noise_field(w, h, noise_level, i_max, key),
-    );
-    noise::overlay(&clean, &mut field);
-    field
-}
-
 /// One run folder: every image in every format, and `truth.json` (in `truth_root` when given).
 fn write_run(
     plan: &Plan,
@@ -774,13 +751,8 @@ fn write_run(
                         Some(image.saturated as u64),
                     )
                 }
-                _ if sampling.is_point() => (
-                    noisy_image(&frame, source, &objects, run.noise_level, det.i_max(), &key),
-                    None,
-                    None,
-                ),
                 _ => (
-                    crate::sampling::coverage::noisy_image(
+                    crate::binary::noisy_image(
                         &frame,
                         source,
                         &objects,

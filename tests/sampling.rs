@@ -152,15 +152,12 @@ phantoms = ["box"]
     rsasim::simulate::prepare_loaded(loaded).expect("prepares")
 }
 
-/// Calls `f` with what run 0's first exposure on its first detector needs: the setup, the
-/// parts, the frame, the source, the beam and the detector model.
+/// Calls `f` with what run 0's first exposure on its first detector needs: the exposure (set-up,
+/// parts, frame, spot centre), the beam and the detector model.
 fn with_inputs<R>(
     plan: &rsasim::simulate::Plan,
     f: impl FnOnce(
-        &rsasim::attenuation::Setup,
-        &[rsasim::attenuation::Part],
-        &DetectorFrame,
-        rsasim::geometry::DVec3,
+        &rsasim::attenuation::Exposure,
         &rsasim::response::Beam,
         &rsasim::response::DetectorModel,
     ) -> R,
@@ -189,25 +186,21 @@ fn with_inputs<R>(
     let (frame, source) = (det.frame(), run.source_of(det));
     let beam = setup.beam(&frame, source, 1.0);
     let detector = setup.detector(&beam, det.i_max());
-    f(setup, &parts, &frame, source, &beam, &detector)
+    let exposure = rsasim::attenuation::Exposure {
+        setup,
+        parts: &parts,
+        frame: &frame,
+        source_mm: source,
+    };
+    f(&exposure, &beam, &detector)
 }
 
 /// The expected image of run 0's first exposure on its first detector, sampled as the scenario
 /// says.
 fn sampled_expected(plan: &rsasim::simulate::Plan) -> rsasim::response::Expected {
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
-    with_inputs(plan, |setup, parts, frame, source, beam, detector| {
-        rsasim::attenuation::sampled::expected(
-            &rsasim::attenuation::Exposure {
-                setup,
-                parts,
-                frame,
-                source_mm: source,
-            },
-            beam,
-            detector,
-            &sampling,
-        )
+    with_inputs(plan, |exposure, beam, detector| {
+        rsasim::attenuation::sampled::expected(exposure, beam, detector, &sampling)
     })
 }
 
@@ -254,7 +247,13 @@ fn one_sample_from_a_point_is_the_sharp_expected_image() {
     // sampled path adds each value once with weight 1).
     let plan = bead_plate("");
     let sampled = sampled_expected(&plan);
-    let sharp = with_inputs(&plan, |setup, parts, &frame, source, beam, detector| {
+    let sharp = with_inputs(&plan, |exposure, beam, detector| {
+        let rsasim::attenuation::Exposure {
+            setup,
+            parts,
+            frame: &frame,
+            source_mm: source,
+        } = *exposure;
         let shadows: Vec<_> = parts
             .iter()
             .map(|p| rsasim::trace::path_lengths(&frame, source, &p.object))
@@ -339,31 +338,12 @@ fn adaptive_sampling_stays_within_its_bound_of_full_sampling() {
     let plan = knee_crop("adaptive");
     let sampling = Sampling::from_imaging(&plan.loaded.scenario.imaging);
     assert!(sampling.adaptive);
-    let (fast, sharp) = with_inputs(&plan, |setup, parts, frame, source, beam, detector| {
-        let fast = rsasim::attenuation::sampled::expected_adaptive_of(
-            &rsasim::attenuation::Exposure {
-                setup,
-                parts,
-                frame,
-                source_mm: source,
-            },
-            beam,
-            detector,
-            &sampling,
-        );
+    let (fast, sharp) = with_inputs(&plan, |exposure, beam, detector| {
+        let fast =
+            rsasim::attenuation::sampled::expected_adaptive_of(exposure, beam, detector, &sampling);
         let mut point = Sampling::from_imaging(&rsasim::scenario::Imaging::default());
         point.adaptive = false;
-        let sharp = rsasim::attenuation::sampled::expected(
-            &rsasim::attenuation::Exposure {
-                setup,
-                parts,
-                frame,
-                source_mm: source,
-            },
-            beam,
-            detector,
-            &point,
-        );
+        let sharp = rsasim::attenuation::sampled::expected(exposure, beam, detector, &point);
         (fast, sharp)
     });
     let n = full.quanta.len();

@@ -1,11 +1,12 @@
 //! The core of rsasim: what a scenario is and how an image forms. The scenario's records, their
 //! parsing and validation; materials and spectra; phantoms and the meshes they read; the
 //! expansion of a scenario into plain runs; geometry (poses, projection, rigid fits); tracing and
-//! sampling; the detector's response and quantum noise; what a scenario will cost and how its runs
-//! are sharded. It sees no image file format, no output folder, no command line, no
-//! reconstruction and no evaluation: those crates sit above it.
+//! sampling; binary-mode images; the detector's response and quantum noise; what a scenario will
+//! cost and how its runs are sharded. It sees no image file format, no output folder, no command
+//! line, no reconstruction and no evaluation: those crates sit above it.
 
 pub mod attenuation;
+pub mod binary;
 pub mod cost;
 pub mod diagnostic;
 pub mod expand;

@@ -1,12 +1,8 @@
-//! Binary mode with area sampling or a focal spot: the covered fraction of every pixel, and the
-//! image the paper's noise model gives with it.
+//! Binary mode with area sampling or a focal spot: the covered fraction of every pixel.
 //!
 //! A pixel's covered fraction c is the weighted mean over sub-sources and pixel samples of the
-//! binary ray test (crosses any object: 1, else 0). Its value is
-//! `round(c · I_max + (1 − c) · n)` (half up), n the pixel's background noise sample
-//! ([`crate::noise::noise_field`], the same streams and draws as the paper's model): a covered
-//! pixel is I_max, an uncovered one its noise, a partly covered one in between. With one ray per
-//! pixel and a point source c is 0 or 1 and this is the paper's image, byte for byte.
+//! binary ray test (crosses any object: 1, else 0). How it becomes a pixel value with the paper's
+//! noise is [`crate::binary`]'s.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -14,7 +10,6 @@ use rayon::prelude::*;
 use super::Sampling;
 use super::strip::{STRIP_SAMPLES, strips};
 use crate::geometry::DetectorFrame;
-use crate::noise::{self, NoiseKey};
 use crate::trace::{self, Object};
 
 /// The covered fraction of every pixel of `frame` (W×H, row-major, in [0, 1]): per pixel
@@ -63,42 +58,6 @@ pub fn coverage(
     out
 }
 
-/// A pixel value from its covered fraction `c` and its background noise sample `n`:
-/// `round(c · i_max + (1 − c) · n)`, half up, within `0..=i_max`.
-pub fn blend(c: f64, n: u16, i_max: u16) -> u16 {
-    let v = c * f64::from(i_max) + (1.0 - c) * f64::from(n);
-    if !(v > 0.0) {
-        0
-    } else if v >= f64::from(i_max) {
-        i_max
-    } else {
-        (v + 0.5) as u16
-    }
-}
-
-/// One noisy binary-mode image with the scenario's sampling: [`coverage`] blended with the
-/// noise field of `key` at `noise_level` ([`blend`]).
-pub fn noisy_image(
-    frame: &DetectorFrame,
-    source_mm: DVec3,
-    objects: &[Object],
-    sampling: &Sampling,
-    noise_level: f64,
-    i_max: u16,
-    key: &NoiseKey,
-) -> Vec<u16> {
-    let [w, h] = frame.pixels.map(|n| n as usize);
-    let (covered, field) = rayon::join(
-        || coverage(frame, source_mm, objects, sampling),
-        || noise::noise_field(w, h, noise_level, i_max, key),
-    );
-    covered
-        .iter()
-        .zip(&field)
-        .map(|(&c, &n)| blend(c, n, i_max))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -137,12 +96,6 @@ mod tests {
         let c = coverage(&f, src, &objects, &point(1));
         let b = trace::render_binary(&f, src, &objects, 1);
         assert_eq!(c, b.iter().map(|&v| f64::from(v)).collect::<Vec<_>>());
-        let key = NoiseKey::derive(1, 0, 0, "e", "d");
-        let sampled = noisy_image(&f, src, &objects, &point(1), 0.3, 4095, &key);
-        // The paper's image: the binary projection with the noise added on its background.
-        let mut paper = trace::render_binary(&f, src, &objects, 4095);
-        noise::add_noise(&mut paper, 64, 0.3, 4095, &key);
-        assert_eq!(sampled, paper);
     }
 
     #[test]
@@ -225,13 +178,5 @@ mod tests {
             let sum = row[59 - d] + row[60 + d];
             assert!((sum - 1.0).abs() < 0.01, "d = {d}: {sum}");
         }
-    }
-
-    #[test]
-    fn blend_mixes_cover_and_noise() {
-        assert_eq!(blend(0.0, 17, 4095), 17);
-        assert_eq!(blend(1.0, 17, 4095), 4095);
-        assert_eq!(blend(0.5, 1, 4095), 2048);
-        assert_eq!(blend(0.25, 0, 100), 25);
     }
 }
