@@ -172,6 +172,35 @@ fn a_bad_key_path_is_an_input_error_naming_the_sweep_file_line_and_key() {
     assert!(!out.exists());
 }
 
+/// A `scenario` path that reaches a file that is no scenario (here a plain text file outside the
+/// sweep's folder, as `/etc/hosts` would be): the error is the file's, and it also names the
+/// sweep file's line that chose it; exit 2, nothing written (campaign seeds 4817, 5219, 5364).
+#[test]
+fn a_base_scenario_that_is_no_scenario_is_traced_to_the_sweep_files_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    let victim = elsewhere.join("notes.txt");
+    std::fs::write(&victim, "root:x:0:0:root:/root:/bin/bash\n").unwrap();
+    let dir = tmp.path().join("sweep");
+    std::fs::create_dir(&dir).unwrap();
+    let file = dir.join("sweep.toml");
+    std::fs::write(
+        &file,
+        "name = \"s\"\nscenario = \"../elsewhere/notes.txt\"\n[[parameters]]\nkey = \"seed\"\nvalues = [1, 2]\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("never");
+    for extra in [&[][..], &["--merge"][..]] {
+        let (code, stderr) = sweep_cli(&file, &out, extra);
+        assert_eq!(code, Some(2), "{extra:?}: {stderr}");
+        assert!(stderr.contains("notes.txt:1:"), "{extra:?}: {stderr}");
+        let origin = format!("named by `scenario` at {}:2:12", file.display());
+        assert!(stderr.contains(&origin), "{extra:?}: {stderr}");
+        assert!(!out.exists(), "{extra:?}");
+    }
+}
+
 #[test]
 fn a_bad_key_or_value_is_reported_at_the_value_that_made_the_point() {
     let tmp = tempfile::tempdir().unwrap();

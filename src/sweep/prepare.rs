@@ -82,6 +82,36 @@ fn assignments(parameters: &[Parameter], choice: &[usize]) -> String {
         .join(", ")
 }
 
+/// The base scenario's errors, each also naming the sweep file's `scenario` value that chose the
+/// file (`sweep.toml:3:12`): a path that leads to the wrong file (a typo, `/etc/hosts`) is then
+/// corrected where it was written, not searched for in the file it reached.
+fn named_by_sweep(file: &SweepFile, errors: Vec<Diagnostic>) -> Vec<Diagnostic> {
+    let at = KeyPath::root().key("scenario");
+    let (line, col) = file
+        .locator
+        .span_of(&at)
+        .map(|span| file.locator.line_col(span.start).0)
+        .unwrap_or((1, 1));
+    let origin = format!(
+        "{} is the base scenario named by `scenario` at {}:{line}:{col}; if it is not the file you meant, correct the path there",
+        file.scenario_path.display(),
+        file.locator.file().display()
+    );
+    errors
+        .into_iter()
+        .map(|d| {
+            if d.file != file.scenario_path {
+                return d;
+            }
+            let help = match &d.help {
+                Some(h) => format!("{h}\n  = note: {origin}"),
+                None => origin.clone(),
+            };
+            d.with_help(help)
+        })
+        .collect()
+}
+
 /// Reads the sweep file and its base scenario, builds every point's scenario and checks it like
 /// the main command (warnings are left to the run of each point, which names its file; with `allow`: `--allow-dir`, `--allow-large`, which also raises the cap of
 /// [`MAX_POINTS`] points to [`MAX_POINTS_LARGE`]). Every point shares the base scenario's seed unless the sweep varies
@@ -107,17 +137,18 @@ pub fn prepare(path: &Path, allow: &Allowances) -> Result<Sweep, Vec<Diagnostic>
                 .with_help("give the scenario's path relative to the sweep file, e.g. scenario = \"../biplanar.toml\""),
         ]);
     }
-    let base = scenario::load(&file.scenario_path)?;
+    let named_by = |errors: Vec<Diagnostic>| named_by_sweep(&file, errors);
+    let base = scenario::load(&file.scenario_path).map_err(named_by)?;
     let base_text = crate::input_file::read_named_text(
         &file.scenario_path,
         crate::scenario::MAX_SCENARIO_BYTES,
     )
-    .map_err(|d| vec![d])?;
+    .map_err(|d| named_by(vec![d]))?;
     let base_doc: toml::Table = base_text.parse().map_err(|e: toml::de::Error| {
-        vec![Diagnostic::file_error(
+        named_by(vec![Diagnostic::file_error(
             &file.scenario_path,
             e.message().to_string(),
-        )]
+        )])
     })?;
     let parameters = resolve_parameters(&file);
     let all = choices(&file.record);
