@@ -157,6 +157,63 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Print a JSON Schema: scenario (default), truth, measured, manifest, study or migration_measured.
     Schema(SchemaArgs),
+    /// Print materials' attenuation: density, composition by mass, absorption edges (1–200 keV)
+    /// and, at each energy asked, μ/ρ (cm²/g) and μ (1/mm). A name is a shipped material, one of
+    /// the scenario's own (`--scenario`) or a chemical symbol (the pure element at its density).
+    Material(MaterialArgs),
+    /// Print the beam of an attenuation-mode scenario: the spectrum after the tube's filtration
+    /// (mean energy, first and second half-value layers in mm Al, photons and air kerma per mAs
+    /// at 1000 mm), the bins traced for the images, the absorption edges of the materials in the
+    /// beam, and each material's transmission at a thickness as the detector weighs it, over the
+    /// traced bins and over every bin. Optionally writes the spectrum as TSV and as an SVG plot.
+    Spectrum(SpectrumArgs),
+}
+
+/// Arguments of `rsasim material`.
+#[derive(Debug, Args)]
+pub struct MaterialArgs {
+    /// Material names, e.g. tantalum cocr_f75 W.
+    #[arg(required = true, value_name = "NAME")]
+    pub names: Vec<String>,
+    /// Photon energies, keV (1 to 200), comma-separated.
+    #[arg(
+        long,
+        value_name = "KEV,…",
+        value_delimiter = ',',
+        default_value = "15,20,30,40,50,60,70,80,100,150"
+    )]
+    pub energies_kev: Vec<f64>,
+    /// A scenario whose `[materials]` may be named too.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `rsasim spectrum`.
+#[derive(Debug, Args)]
+pub struct SpectrumArgs {
+    /// The scenario file (attenuation mode).
+    pub scenario: PathBuf,
+    /// Thicknesses to give transmissions for: `MATERIAL=MM` (repeatable, or comma-separated),
+    /// e.g. tantalum=1,soft_tissue=100,W=0.5; a bare number applies to every material of the
+    /// scene. Default: 1 mm of every material of the scene.
+    #[arg(long, value_name = "[MATERIAL=]MM", value_delimiter = ',')]
+    pub thickness_mm: Vec<String>,
+    /// Also write the spectrum (every bin, before and after filtration, and the detector's
+    /// absorption) as tab-separated text into FILE.
+    #[arg(long, value_name = "FILE")]
+    pub tsv: Option<PathBuf>,
+    /// Also write a plot of the spectrum (SVG) into FILE.
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// What the scenario may read and use beyond the defaults.
+    #[command(flatten)]
+    pub allow: AllowArgs,
 }
 
 /// Arguments of `rsasim validate`.

@@ -4,6 +4,7 @@
 
 mod cli;
 mod commands;
+mod spectrum_plot;
 
 use std::process::ExitCode;
 
@@ -11,7 +12,8 @@ use clap::Parser;
 
 use cli::{Cli, Command};
 use commands::{
-    evaluate, expand, export, merge, reconstruct, run, scene, schema, sweep, validate, verify,
+    evaluate, expand, export, material, merge, reconstruct, run, scene, schema, spectrum, sweep,
+    validate, verify,
 };
 
 fn main() -> ExitCode {
@@ -27,6 +29,8 @@ fn main() -> ExitCode {
         Some(Command::Evaluate(args)) => evaluate::execute(args),
         Some(Command::Verify(args)) => verify::execute(args),
         Some(Command::Merge(args)) => merge::execute(args),
+        Some(Command::Material(args)) => material::execute(args),
+        Some(Command::Spectrum(args)) => spectrum::execute(args),
         None => run::execute(cli.run),
     };
     match result {

@@ -27,6 +27,7 @@ mod mesh_formats;
 mod migration;
 mod mutation;
 mod output_safety;
+mod physics;
 mod reconstruct;
 mod reconstruct_realistic;
 mod sampling;

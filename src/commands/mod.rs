@@ -5,12 +5,14 @@
 pub mod evaluate;
 pub mod expand;
 pub mod export;
+pub mod material;
 pub mod merge;
 pub mod reconstruct;
 pub mod run;
 pub mod scene;
 pub mod schema;
 mod shared;
+pub mod spectrum;
 pub mod sweep;
 pub mod validate;
 pub mod verify;

@@ -69,6 +69,21 @@ pub fn check_shard_count(spec: ShardSpec, from: &str, runs: usize, large: bool) 
     })
 }
 
+/// Writes `text` to standard output; exit 1 naming the failure (a reader that closed the pipe
+/// early, as `| head` does, is no failure: the rest is not wanted).
+pub fn print_stdout(text: &str) -> Result<(), u8> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => {
+            eprintln!("error: writing to standard output failed: {e}");
+            Err(1)
+        }
+    }
+}
+
 /// Paths for a message, joined by `, `.
 pub fn shown(paths: &[PathBuf]) -> String {
     paths

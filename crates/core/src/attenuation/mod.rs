@@ -4,6 +4,7 @@
 //! (`crate::trace::path_lengths`), summed per material, attenuated over the spectrum and turned
 //! into detector values with quantum noise (`crate::response`). See docs/CONVENTIONS.md, "Image formation".
 
+pub mod beamline;
 pub mod check;
 pub mod containment;
 pub mod image;

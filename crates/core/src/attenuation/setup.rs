@@ -124,30 +124,11 @@ impl Setup {
         let err = |path: KeyPath, message: String, help: &str| {
             vec![loaded.locator.error(path, message).with_help(help)]
         };
-        let mut spectrum_file_bytes = None;
-        let spectrum = if let Some(e) = im.energy_kev {
-            Spectrum::monochromatic(e)
-        } else if let Some(t) = &im.tube {
-            let mut sp = Spectrum::tube(t.kvp, t.anode_angle_deg).map_err(|e| {
-                err(
-                    key.key("tube"),
-                    e,
-                    "kVp 40–150 (whole numbers), anode angles as listed in the README",
-                )
-            })?;
-            for f in &t.filtration {
-                let m = resolve(s, &f.material).expect("validated material");
-                sp = sp.filtered(|e| m.linear_attenuation_per_mm(e), f.thickness_mm);
-            }
-            sp
-        } else if let Some(file) = &im.spectrum_file {
-            let (sp, bytes) = read_spectrum(loaded, file)
-                .map_err(|(m, h): (String, String)| err(key.key("spectrum_file"), m, &h))?;
-            spectrum_file_bytes = Some(bytes);
-            sp
-        } else {
-            unreachable!("validated: one spectrum source");
-        };
+        let BeamSpectrum {
+            filtered: spectrum,
+            file_bytes: spectrum_file_bytes,
+            ..
+        } = beam_spectrum(loaded)?;
         let spectrum = spectrum.coarsened(im.max_bins());
         if !(spectrum.total_photons() > 0.0) {
             return Err(err(
@@ -301,6 +282,66 @@ impl Setup {
 }
 
 pub use crate::material::METAL_DENSITY_G_CM3;
+
+/// The spectrum of an attenuation-mode scenario's `[imaging]`, before the bins are merged for
+/// tracing (`max_energy_bins`).
+#[derive(Debug, Clone)]
+pub struct BeamSpectrum {
+    /// The tube's spectrum before its filtration (a monochromatic or user spectrum as given).
+    pub unfiltered: Spectrum,
+    /// After the tube's filtration: what reaches the patient.
+    pub filtered: Spectrum,
+    /// The bytes of `spectrum_file` as read.
+    pub file_bytes: Option<Vec<u8>>,
+}
+
+/// The spectrum `[imaging]` gives (`energy_kev`, `tube` with its filtration, or
+/// `spectrum_file`); errors name the key.
+pub fn beam_spectrum(loaded: &LoadedScenario) -> Result<BeamSpectrum, Vec<Diagnostic>> {
+    let s = &loaded.scenario;
+    let im = &s.imaging;
+    let key = KeyPath::root().key("imaging");
+    let err = |path: KeyPath, message: String, help: &str| {
+        vec![loaded.locator.error(path, message).with_help(help)]
+    };
+    if let Some(e) = im.energy_kev {
+        let sp = Spectrum::monochromatic(e);
+        return Ok(BeamSpectrum {
+            unfiltered: sp.clone(),
+            filtered: sp,
+            file_bytes: None,
+        });
+    }
+    if let Some(t) = &im.tube {
+        let unfiltered = Spectrum::tube(t.kvp, t.anode_angle_deg).map_err(|e| {
+            err(
+                key.key("tube"),
+                e,
+                "kVp 40–150 (whole numbers), anode angles as listed in the README",
+            )
+        })?;
+        let mut filtered = unfiltered.clone();
+        for f in &t.filtration {
+            let m = resolve(s, &f.material).expect("validated material");
+            filtered = filtered.filtered(|e| m.linear_attenuation_per_mm(e), f.thickness_mm);
+        }
+        return Ok(BeamSpectrum {
+            unfiltered,
+            filtered,
+            file_bytes: None,
+        });
+    }
+    let Some(file) = &im.spectrum_file else {
+        unreachable!("validated: one spectrum source");
+    };
+    let (sp, bytes) = read_spectrum(loaded, file)
+        .map_err(|(m, h): (String, String)| err(key.key("spectrum_file"), m, &h))?;
+    Ok(BeamSpectrum {
+        unfiltered: sp.clone(),
+        filtered: sp,
+        file_bytes: Some(bytes),
+    })
+}
 
 /// A library or user material by name.
 pub fn resolve(s: &Scenario, name: &str) -> Option<Material> {

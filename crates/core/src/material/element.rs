@@ -58,11 +58,42 @@ impl Element {
         self.table.at(e_kev)
     }
 
+    /// The absorption edges of this element between [`ENERGY_MIN_KEV`](super::ENERGY_MIN_KEV)
+    /// and [`ENERGY_MAX_KEV`](super::ENERGY_MAX_KEV), highest first, each with its shell: the
+    /// highest is the K edge, then L1, L2, L3, M1 … M5 (each shell's edge lies below the one
+    /// before it, so the edges in a range from the top down are those shells in that order).
+    pub fn edges(&self) -> Vec<Edge> {
+        const SHELLS: [&str; 9] = ["K", "L1", "L2", "L3", "M1", "M2", "M3", "M4", "M5"];
+        let mut energies: Vec<f64> = self.table.edges_kev().collect();
+        energies.reverse();
+        energies
+            .into_iter()
+            .zip(SHELLS)
+            .map(|(energy_kev, shell)| Edge {
+                z: self.z,
+                shell,
+                energy_kev,
+            })
+            .collect()
+    }
+
     /// The table rows (energy in keV, μ/ρ in cm²/g), edges as two rows with the same energy.
     #[cfg(test)]
     pub(super) fn rows(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
         self.table.rows()
     }
+}
+
+/// An absorption edge: the energy at which μ/ρ of an element jumps, as a photon can free an
+/// electron of one more shell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Edge {
+    /// The element's atomic number.
+    pub z: u8,
+    /// The shell: `K`, `L1`, `L2`, `L3`, `M1` … `M5`.
+    pub shell: &'static str,
+    /// The edge energy, keV (above it the higher value applies).
+    pub energy_kev: f64,
 }
 
 /// The element with chemical symbol `symbol`, case-sensitive (`"Ta"`, not `"ta"`).
@@ -187,6 +218,44 @@ mod tests {
                 assert_eq!(el.mass_attenuation_cm2_g(e), want, "Z {} at {e} keV", el.z);
             }
         }
+    }
+
+    /// Edge energies of tantalum and aluminium as NIST tabulates them (Hubbell & Seltzer, NISTIR
+    /// 5632, Table 3: Ta K 67.4164, L1 11.6815, L2 11.1361, L3 9.8811, M1 2.708, M2 2.4687, M3
+    /// 2.1943, M4 1.7932, M5 1.7351 keV; Al K 1.5596 keV); the shipped edges are xraylib's,
+    /// snapped to those energies when within 0.3 % (data/attenuation/README.md).
+    #[test]
+    fn edges_are_the_shells_from_the_top_down() {
+        let ta: Vec<(&str, f64)> = element("Ta")
+            .unwrap()
+            .edges()
+            .iter()
+            .map(|e| (e.shell, e.energy_kev))
+            .collect();
+        let nist = [
+            ("K", 67.4164),
+            ("L1", 11.6815),
+            ("L2", 11.1361),
+            ("L3", 9.8811),
+            ("M1", 2.708),
+            ("M2", 2.4687),
+            ("M3", 2.1943),
+            ("M4", 1.7932),
+            ("M5", 1.7351),
+        ];
+        assert_eq!(ta.len(), nist.len(), "{ta:?}");
+        for ((shell, got), (want_shell, want)) in ta.iter().zip(nist) {
+            assert_eq!(*shell, want_shell);
+            assert!(
+                (got / want - 1.0).abs() < 3e-3,
+                "{shell}: {got} keV, NIST {want}"
+            );
+        }
+        let al = element("Al").unwrap().edges();
+        assert_eq!(al.len(), 1);
+        assert_eq!(al[0].shell, "K");
+        assert!((al[0].energy_kev / 1.5596 - 1.0).abs() < 3e-3);
+        assert!(element("H").unwrap().edges().is_empty());
     }
 
     #[test]

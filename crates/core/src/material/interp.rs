@@ -68,6 +68,14 @@ impl Table {
         libm::exp(self.ln_mu_rho[i] + t * (self.ln_mu_rho[i + 1] - self.ln_mu_rho[i]))
     }
 
+    /// The absorption edges of the table: the energies that appear on two rows, increasing.
+    pub(super) fn edges_kev(&self) -> impl Iterator<Item = f64> + '_ {
+        self.energy_kev
+            .windows(2)
+            .filter(|w| w[0] == w[1])
+            .map(|w| w[0])
+    }
+
     /// The rows (energy, value), for tests.
     #[cfg(test)]
     pub(super) fn rows(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
@@ -115,6 +123,11 @@ mod tests {
         // Just below the edge the lower branch, just above it the upper one.
         assert!((t.at(19.999_999) / 2.0 - 1.0).abs() < 1e-6);
         assert!((t.at(20.000_001) / 16.0 - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn edges_are_the_energies_on_two_rows() {
+        assert_eq!(table().edges_kev().collect::<Vec<_>>(), vec![20.0]);
     }
 
     #[test]

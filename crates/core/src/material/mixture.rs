@@ -41,6 +41,19 @@ impl Material {
         self.mass_attenuation_cm2_g(e_kev) * self.density_g_cm3 / 10.0
     }
 
+    /// The absorption edges of every element of the material (see [`Element::edges`]
+    /// (super::Element::edges)), increasing in energy.
+    pub fn edges(&self) -> Vec<super::Edge> {
+        let mut edges: Vec<super::Edge> = self
+            .mass_fractions
+            .iter()
+            .filter_map(|&(z, _)| element_by_z(z))
+            .flat_map(|el| el.edges())
+            .collect();
+        edges.sort_by(|a, b| a.energy_kev.total_cmp(&b.energy_kev).then(a.z.cmp(&b.z)));
+        edges
+    }
+
     /// A user material from element symbols and mass fractions. The error is a sentence naming
     /// the material and the bad symbol, fraction or density, and saying what is valid. Refused:
     /// no elements; an unknown symbol (symbols are case-sensitive, `H` to `U`); a fraction ≤ 0 or

@@ -21,7 +21,7 @@ mod mixture;
 #[cfg(test)]
 mod nist_tests;
 
-pub use element::{Element, element, element_by_z};
+pub use element::{Edge, Element, element, element_by_z};
 pub use library::{by_name, library, library_source};
 pub use mixture::Material;
 

@@ -117,6 +117,20 @@ impl Spectrum {
     /// `f64::INFINITY` when the material never halves it (μ = 0 wherever there is kerma),
     /// `f64::NAN` when the spectrum has no air kerma at all.
     pub fn hvl_mm(&self, mu_per_mm: impl Fn(f64) -> f64) -> f64 {
+        self.kerma_layer_mm(mu_per_mm, 0.5)
+    }
+
+    /// The second half-value layer in mm: the thickness that halves the air kerma again after
+    /// the first (the quarter-value layer minus the first HVL). `INFINITY` and `NAN` as
+    /// [`Spectrum::hvl_mm`].
+    pub fn hvl2_mm(&self, mu_per_mm: impl Fn(f64) -> f64) -> f64 {
+        let mu = &mu_per_mm;
+        self.kerma_layer_mm(mu, 0.25) - self.kerma_layer_mm(mu, 0.5)
+    }
+
+    /// The thickness in mm of the material with linear attenuation `mu_per_mm(E)` that leaves
+    /// `fraction` (in (0, 1)) of this spectrum's air kerma (bisection to 1e-12 relative).
+    fn kerma_layer_mm(&self, mu_per_mm: impl Fn(f64) -> f64, fraction: f64) -> f64 {
         let weights = self.air_kerma_weights();
         let mus: Vec<f64> = self.energies_kev.iter().map(|&e| mu_per_mm(e)).collect();
         let kerma = |t: f64| -> f64 {
@@ -126,12 +140,12 @@ impl Spectrum {
                 .map(|(&w, &mu)| w * transmission(mu * t))
                 .sum()
         };
-        let half = 0.5 * kerma(0.0);
-        if half.is_nan() || half <= 0.0 {
+        let target = fraction * kerma(0.0);
+        if target.is_nan() || target <= 0.0 {
             return f64::NAN;
         }
         let mut hi = 1.0;
-        while kerma(hi) > half {
+        while kerma(hi) > target {
             hi *= 2.0;
             if hi > 1e12 {
                 return f64::INFINITY;
@@ -140,7 +154,7 @@ impl Spectrum {
         let mut lo = 0.0;
         for _ in 0..200 {
             let mid = 0.5 * (lo + hi);
-            if kerma(mid) > half {
+            if kerma(mid) > target {
                 lo = mid;
             } else {
                 hi = mid;
@@ -262,6 +276,25 @@ mod tests {
         let k0: f64 = s.air_kerma_weights().iter().sum();
         let k1: f64 = s.filtered(mu, hvl).air_kerma_weights().iter().sum();
         assert!((k1 / k0 - 0.5).abs() < 1e-10, "{}", k1 / k0);
+    }
+
+    #[test]
+    fn hvl2_of_a_single_energy_equals_hvl1() {
+        // One energy: every half-value layer is ln 2 / μ.
+        let s = Spectrum::monochromatic(60.0);
+        let (h1, h2) = (s.hvl_mm(|_| 0.25), s.hvl2_mm(|_| 0.25));
+        assert!((h2 - h1).abs() < 1e-9 * h1, "{h1} {h2}");
+    }
+
+    #[test]
+    fn hvl2_exceeds_hvl1_in_a_hardening_beam() {
+        let s = three_bins();
+        let mu = |e: f64| 5.0 / e;
+        let (h1, h2) = (s.hvl_mm(mu), s.hvl2_mm(mu));
+        let k0: f64 = s.air_kerma_weights().iter().sum();
+        let k2: f64 = s.filtered(mu, h1 + h2).air_kerma_weights().iter().sum();
+        assert!((k2 / k0 - 0.25).abs() < 1e-10, "{}", k2 / k0);
+        assert!(h2 > h1, "{h1} {h2}");
     }
 
     #[test]
