@@ -50,21 +50,71 @@ def tube(kvp, angle_deg):
     return k, f * DK_KEV * PER_CM2_TO_PER_MM2
 
 
+# The shipped tables: the bremsstrahlung continuum sampled every BREM_DK_KEV keV (rsasim
+# interpolates it linearly onto its LINE_DK_KEV grid), and the characteristic lines in
+# LINE_DK_KEV bins, so that an absorption edge of the scene (tantalum's K edge at 67.416 keV, a
+# line's width away from tungsten's K-beta1 line at 67.24 keV) can fall between a line and the
+# continuum on the side where it really is.
+BREM_DK_KEV = 0.5
+LINE_DK_KEV = 0.05
+
+
+def continuum(kvp, angle_deg):
+    """Bremsstrahlung only: bin centres 1.25, 1.75, ..., kvp - 0.25 keV and photons per
+    BREM_DK_KEV bin per mm^2 per mAs at 1000 mm (SpekPy's density at the centre times the width)."""
+    s = sp.Spek(kvp=kvp, th=angle_deg, dk=BREM_DK_KEV)
+    k, f = s.get_spectrum(char=False)
+    assert s.state.filtration.filters == [], "SpekPy added filtration"
+    assert np.allclose(k, np.arange(1.0 + BREM_DK_KEV / 2, kvp, BREM_DK_KEV)), f"bins {k[:3]}"
+    return k, f * BREM_DK_KEV * PER_CM2_TO_PER_MM2
+
+
+def characteristic(kvp, angle_deg):
+    """The characteristic lines: SpekPy's spectrum minus its bremsstrahlung in LINE_DK_KEV bins,
+    as {bin centre rounded to 0.001 keV: photons per mm^2 per mAs at 1000 mm} (bins with lines)."""
+    s = sp.Spek(kvp=kvp, th=angle_deg, dk=LINE_DK_KEV)
+    k, total = s.get_spectrum()
+    _, brem = s.get_spectrum(char=False)
+    lines = (total - brem) * LINE_DK_KEV * PER_CM2_TO_PER_MM2
+    assert np.all(lines >= -1e-9 * total.max()), "SpekPy's lines negative"
+    return {round(float(e), 3): float(n) for e, n in zip(k, lines) if n > 0}
+
+
 def write_tungsten():
-    lines = [
-        "# rsasim tube spectra: tungsten anode, no added filtration (SpekPy 2.5.4 defaults:",
-        "# physics spekpy-v2-casim, mu data pene), on the central axis at 1000 mm from the focus.",
-        "# Columns: anode_angle_deg, kvp, then photons per mm^2 per mAs in each 1 keV bin",
-        "# [1,2), [2,3), ..., [kvp-1, kvp) keV (bin centres 1.5, 2.5, ..., kvp - 0.5 keV).",
-        "# Made by data/spectra/regen.py; do not edit by hand.",
-    ]
+    rows = []
+    line_rows = []
     for angle in ANGLES_DEG:
         for kvp in range(KVP_MIN, KVP_MAX + 1):
-            _, n = tube(kvp, angle)
-            lines.append("\t".join([str(angle), str(kvp)] + [fmt(v) for v in n]))
-        print(f"tungsten.tsv: angle {angle} done", file=sys.stderr)
+            _, n = continuum(kvp, angle)
+            rows.append("\t".join([str(angle), str(kvp)] + [fmt(v) for v in n]))
+            line_rows.append((angle, kvp, characteristic(kvp, angle)))
+        print(f"tungsten.tsv, tungsten_lines.tsv: angle {angle} done", file=sys.stderr)
+    header = [
+        "# rsasim tube spectra, bremsstrahlung only: tungsten anode, no added filtration (SpekPy",
+        "# 2.5.4 defaults: physics spekpy-v2-casim, mu data pene), on the central axis at 1000 mm",
+        "# from the focus. Columns: anode_angle_deg, kvp, then photons per mm^2 per mAs in each",
+        f"# {BREM_DK_KEV} keV bin [1, 1.5), [1.5, 2), ..., [kvp - 0.5, kvp) keV (SpekPy's density at",
+        "# the bin centre times the width). The characteristic lines are in tungsten_lines.tsv.",
+        "# Made by data/spectra/regen.py; do not edit by hand.",
+    ]
     with open(os.path.join(HERE, "tungsten.tsv"), "w") as out:
-        out.write("\n".join(lines) + "\n")
+        out.write("\n".join(header + rows) + "\n")
+    energies = sorted({e for _, _, lines in line_rows for e in lines})
+    header = [
+        "# rsasim tube spectra, characteristic lines of the tungsten anode (SpekPy 2.5.4, as in",
+        "# tungsten.tsv): SpekPy's spectrum minus its bremsstrahlung in "
+        f"{LINE_DK_KEV} keV bins. The",
+        "# columns after anode_angle_deg and kvp are the bins centred at the energies (keV) of the",
+        "# `energy_kev` row; values are photons per mm^2 per mAs at 1000 mm in that bin.",
+        "# Made by data/spectra/regen.py; do not edit by hand.",
+        "\t".join(["energy_kev", "-"] + [f"{e:.3f}" for e in energies]),
+    ]
+    rows = [
+        "\t".join([str(a), str(kvp)] + [fmt(lines.get(e, 0.0)) for e in energies])
+        for a, kvp, lines in line_rows
+    ]
+    with open(os.path.join(HERE, "tungsten_lines.tsv"), "w") as out:
+        out.write("\n".join(header + rows) + "\n")
 
 
 def write_air():
@@ -158,6 +208,9 @@ def measure_interpolation():
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--tungsten"]:
+        write_tungsten()  # only the two tube tables (40 minutes on an idle core)
+        sys.exit(0)
     write_air()
     write_checks()
     measure_interpolation()
