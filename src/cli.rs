@@ -196,9 +196,10 @@ pub struct MaterialArgs {
 pub struct SpectrumArgs {
     /// The scenario file (attenuation mode).
     pub scenario: PathBuf,
-    /// Thicknesses to give transmissions for: `MATERIAL=MM` (repeatable, or comma-separated),
-    /// e.g. tantalum=1,soft_tissue=100,W=0.5; a bare number applies to every material of the
-    /// scene. Default: 1 mm of every material of the scene.
+    /// Thicknesses to give transmissions for: `MATERIAL=MM` (repeatable, or comma-separated; a
+    /// material may be named with several), e.g. tantalum=0.5,tantalum=1,soft_tissue=100,W=0.5;
+    /// a bare number applies to every material of the scene not named. Default: 1 mm of every
+    /// material of the scene.
     #[arg(long, value_name = "[MATERIAL=]MM", value_delimiter = ',')]
     pub thickness_mm: Vec<String>,
     /// Also write the spectrum (every bin, before and after filtration, and the detector's

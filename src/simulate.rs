@@ -160,6 +160,11 @@ pub fn check_loaded(loaded: LoadedScenario, allow_large: bool) -> Result<Checked
     let mut all_warnings = loaded.warnings.clone();
     all_warnings.extend(mesh_warnings);
     all_warnings.extend(warnings);
+    if let Some(setup) = &setup {
+        all_warnings.extend(attenuation::check::spectral_tolerance_warning(
+            &loaded, setup,
+        ));
+    }
     Ok(Checked {
         loaded,
         models,

@@ -65,8 +65,9 @@ pub fn execute(args: SpectrumArgs) -> Outcome {
     Ok(())
 }
 
-/// The `--thickness-mm` entries as (material, mm): a bare number for every scene material
-/// (default 1 mm), then the named ones (a later entry for the same name replaces an earlier one).
+/// The `--thickness-mm` entries as (material, mm): a bare number for every scene material not
+/// named (default 1 mm), then the named ones in the order given (a material may be named with
+/// several thicknesses; the same pair twice counts once).
 fn thicknesses(entries: &[String], scene: &[String]) -> Result<Vec<(String, f64)>, u8> {
     let mut all_mm = 1.0;
     let mut named: Vec<(String, f64)> = Vec::new();
@@ -89,8 +90,9 @@ fn thicknesses(entries: &[String], scene: &[String]) -> Result<Vec<(String, f64)
         };
         match name {
             Some(n) => {
-                named.retain(|(x, _)| x != n);
-                named.push((n.to_string(), mm));
+                if !named.iter().any(|(x, t)| x == n && *t == mm) {
+                    named.push((n.to_string(), mm));
+                }
             }
             None => all_mm = mm,
         }
@@ -163,9 +165,10 @@ fn text(scenario: &Path, beam: &Beamline) -> String {
     let mut out = format!("rsasim spectrum: {}\n", scenario.display());
     out += &format!("source: {}\n", beam.source);
     out += &format!(
-        "bins: {} in the spectrum, {} traced for the images\n",
+        "bins: {} in the spectrum, {} traced for the images, within {:.3} % for a layer of one material down to 0.1 % transmission\n",
         beam.filtered.energies_kev.len(),
-        beam.traced_bins.len()
+        beam.traced_bins.len(),
+        beam.spectral_tolerance * 100.0
     );
     out += &format!("mean energy: {:.3} keV\n", beam.mean_energy_kev);
     out += &format!(

@@ -82,6 +82,16 @@ pub struct Beamline {
     /// For each traced bin: the detector's absorption.
     #[serde(skip)]
     traced_efficiency: Vec<f64>,
+    /// For each traced bin: the first and last energy it groups.
+    #[serde(skip)]
+    traced_bounds_kev: Vec<[f64; 2]>,
+    /// The materials the images trace, and their attenuation over each traced bin.
+    #[serde(skip)]
+    scene: Vec<Material>,
+    #[serde(skip)]
+    scene_mu: Vec<Vec<f64>>,
+    /// The relative error the traced bins hold ([`Setup::spectral_tolerance`]).
+    pub spectral_tolerance: f64,
 }
 
 /// A material by name: the scenario's own (`[materials]`), the library's, or a chemical symbol
@@ -195,13 +205,17 @@ impl Beamline {
             filtered,
             efficiency,
             traced_efficiency: setup.efficiency.clone(),
+            traced_bounds_kev: setup.traced_bounds_kev.clone(),
+            scene: setup.materials.clone(),
+            scene_mu: setup.mu_per_mm.clone(),
+            spectral_tolerance: setup.spectral_tolerance,
         }
     }
 
-    /// Adds the transmission of `material` at `thickness_mm`, over the traced bins and over
-    /// every bin.
+    /// Adds the transmission of `material` at `thickness_mm`, over the traced bins (with each
+    /// bin's attenuation as the images take it: the signal-weighted mean over the bins it
+    /// groups) and over every bin.
     pub fn add_transmission(&mut self, material: &Material, thickness_mm: f64) {
-        let mu = |e: f64| material.linear_attenuation_per_mm(e);
         let (energies, photons): (Vec<f64>, Vec<f64>) =
             self.traced_bins.iter().map(|b| (b[0], b[1])).unzip();
         let traced = detected_transmission(
@@ -209,15 +223,21 @@ impl Beamline {
             &energies,
             &photons,
             &self.traced_efficiency,
-            mu,
+            &self.traced_mu(material),
             thickness_mm,
         );
+        let mu: Vec<f64> = self
+            .filtered
+            .energies_kev
+            .iter()
+            .map(|&e| material.linear_attenuation_per_mm(e))
+            .collect();
         let all_bins = detected_transmission(
             self.response,
             &self.filtered.energies_kev,
             &self.filtered.photons,
             &self.efficiency,
-            mu,
+            &mu,
             thickness_mm,
         );
         self.transmissions.push(Transmission {
@@ -226,6 +246,37 @@ impl Beamline {
             traced,
             all_bins,
         });
+    }
+
+    /// The attenuation of `material` over each traced bin: the setup's own for a material the
+    /// images trace, else the signal-weighted mean over the spectrum's bins the traced bin groups.
+    fn traced_mu(&self, material: &Material) -> Vec<f64> {
+        if let Some(m) = self.scene.iter().position(|x| x == material) {
+            return self.scene_mu[m].clone();
+        }
+        self.traced_bounds_kev
+            .iter()
+            .map(|&[lo, hi]| {
+                let (mut w, mut wmu) = (0.0, 0.0);
+                let bins = self
+                    .filtered
+                    .energies_kev
+                    .iter()
+                    .zip(&self.filtered.photons)
+                    .zip(&self.efficiency);
+                for ((&e, &n), &eta) in bins {
+                    if e >= lo && e <= hi {
+                        let x = match self.response {
+                            ResponseKind::PhotonCounting => n * eta,
+                            ResponseKind::EnergyIntegrating => n * eta * e,
+                        };
+                        w += x;
+                        wmu += x * material.linear_attenuation_per_mm(e);
+                    }
+                }
+                if w > 0.0 { wmu / w } else { 0.0 }
+            })
+            .collect()
     }
 
     /// The detector's absorption at each bin of the filtered spectrum.
@@ -249,7 +300,7 @@ fn traced_bins(setup: &Setup, filtered: &Spectrum) -> Vec<[f64; 2]> {
         .collect()
 }
 
-/// `Σ w_b·exp(−μ(E_b)·t) / Σ w_b` with the detector's weights `w_b = N_b·η_b` (photon counting)
+/// `Σ w_b·exp(−μ_b·t) / Σ w_b` with the detector's weights `w_b = N_b·η_b` (photon counting)
 /// or `N_b·η_b·E_b` (energy integrating), as the images weigh the bins
 /// (`crate::response::bins`); 0 for a beam the detector does not see.
 pub fn detected_transmission(
@@ -257,17 +308,22 @@ pub fn detected_transmission(
     energies_kev: &[f64],
     photons: &[f64],
     efficiency: &[f64],
-    mu_per_mm: impl Fn(f64) -> f64,
+    mu_per_mm: &[f64],
     thickness_mm: f64,
 ) -> f64 {
     let (mut open, mut behind) = (0.0, 0.0);
-    for ((&e, &n), &eta) in energies_kev.iter().zip(photons).zip(efficiency) {
+    let bins = energies_kev
+        .iter()
+        .zip(photons)
+        .zip(efficiency)
+        .zip(mu_per_mm);
+    for (((&e, &n), &eta), &mu) in bins {
         let w = match response {
             ResponseKind::PhotonCounting => n * eta,
             ResponseKind::EnergyIntegrating => n * eta * e,
         };
         open += w;
-        behind += w * libm::exp(-mu_per_mm(e) * thickness_mm);
+        behind += w * libm::exp(-mu * thickness_mm);
     }
     if open > 0.0 { behind / open } else { 0.0 }
 }
@@ -283,7 +339,7 @@ mod tests {
             ResponseKind::PhotonCounting,
             ResponseKind::EnergyIntegrating,
         ] {
-            let t = detected_transmission(response, &[60.0], &[7.0], &[0.3], |_| 0.5, 2.0);
+            let t = detected_transmission(response, &[60.0], &[7.0], &[0.3], &[0.5], 2.0);
             assert!((t - libm::exp(-1.0)).abs() < 1e-15, "{t}");
         }
     }
@@ -292,16 +348,16 @@ mod tests {
     fn the_weights_are_photons_or_energy_times_absorption() {
         // Two bins, μ = 1 and 0 per mm over 1 mm: T = w₁e⁻¹ + w₂ over w₁ + w₂.
         let (e, n, eta) = ([20.0, 60.0], [3.0, 1.0], [1.0, 0.5]);
-        let mu = |x: f64| if x < 40.0 { 1.0 } else { 0.0 };
-        let counting = detected_transmission(ResponseKind::PhotonCounting, &e, &n, &eta, mu, 1.0);
+        let mu = [1.0, 0.0];
+        let counting = detected_transmission(ResponseKind::PhotonCounting, &e, &n, &eta, &mu, 1.0);
         let want = (3.0 * libm::exp(-1.0) + 0.5) / 3.5;
         assert!((counting - want).abs() < 1e-15, "{counting} {want}");
         let integrating =
-            detected_transmission(ResponseKind::EnergyIntegrating, &e, &n, &eta, mu, 1.0);
+            detected_transmission(ResponseKind::EnergyIntegrating, &e, &n, &eta, &mu, 1.0);
         let want = (60.0 * libm::exp(-1.0) + 30.0) / 90.0;
         assert!((integrating - want).abs() < 1e-15, "{integrating} {want}");
         let dark =
-            detected_transmission(ResponseKind::PhotonCounting, &e, &[0.0; 2], &eta, mu, 1.0);
+            detected_transmission(ResponseKind::PhotonCounting, &e, &[0.0; 2], &eta, &mu, 1.0);
         assert_eq!(dark, 0.0);
     }
 

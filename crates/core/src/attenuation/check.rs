@@ -59,3 +59,40 @@ pub fn check_runs(
     }
     out
 }
+
+/// A warning when `max_energy_bins` is too few for the `spectral_tolerance` the scenario asks
+/// for: the traced bins hold a wider one (see [`super::spectral`]).
+pub fn spectral_tolerance_warning(loaded: &LoadedScenario, setup: &Setup) -> Option<Diagnostic> {
+    let im = &loaded.scenario.imaging;
+    let asked = im.spectral_tolerance?;
+    if setup.spectral_tolerance <= asked {
+        return None;
+    }
+    let key = KeyPath::root().key("imaging");
+    let key = if im.max_energy_bins.is_some() {
+        key.key("max_energy_bins")
+    } else {
+        key.key("spectral_tolerance")
+    };
+    let reached = if setup.spectral_tolerance.is_finite() {
+        format!(
+            "they hold {:.3} % instead of {:.3} %",
+            setup.spectral_tolerance * 100.0,
+            asked * 100.0
+        )
+    } else {
+        "even one bin per stretch between absorption edges is more; the bins are merged in equal runs and the error is not bounded".to_string()
+    };
+    Some(
+        loaded
+            .locator
+            .warning(
+                key,
+                format!(
+                    "max_energy_bins {} is too few to trace the spectrum within spectral_tolerance {asked}: {reached} (the transmission of a layer of one material, relative; `rsasim spectrum` shows each material's)",
+                    im.max_bins()
+                ),
+            )
+            .with_help("raise max_energy_bins (each bin costs time on every pixel crossing two materials or more), or state the spectral_tolerance you accept"),
+    )
+}

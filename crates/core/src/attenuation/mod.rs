@@ -12,6 +12,7 @@ pub mod sampled;
 pub mod scene;
 pub mod setup;
 mod shadow;
+pub mod spectral;
 
 pub use image::{AttenuationImage, BeadVisibility, Formation, render};
 pub use scene::{Exposure, Part, parts};

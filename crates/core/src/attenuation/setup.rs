@@ -1,6 +1,7 @@
 //! The scenario's `[imaging]` resolved once into plain numbers: the materials in use (indexed),
-//! the spectrum after filtration (at most `max_energy_bins` bins), the linear attenuation of
-//! every material at every bin energy, and the detector's absorption per bin.
+//! the spectrum after filtration grouped into the bins the images are traced with (at most
+//! `max_energy_bins`, see [`spectral`]), the linear attenuation of every material over every
+//! traced bin, and the detector's absorption per bin.
 
 use glam::DVec3;
 
@@ -13,6 +14,8 @@ use crate::response::{
 };
 use crate::scenario::{LoadedScenario, PolarityOption, ResponseKind, Scenario};
 use crate::spectrum::Spectrum;
+
+use super::spectral;
 
 /// Largest spectrum file read, bytes.
 const MAX_SPECTRUM_FILE_BYTES: u64 = 4 * 1024 * 1024;
@@ -74,7 +77,7 @@ impl DetectorBlur {
 pub struct Setup {
     /// The materials in use, in first-use order (volumes, beads, then plates); indices below.
     pub materials: Vec<Material>,
-    /// Bin centres, keV.
+    /// The traced bins' energies, keV ([`spectral`]).
     pub energies_kev: Vec<f64>,
     /// Photons per bin after filtration: absolute (per mm² per mAs at 1000 mm) for a tube with
     /// `mas`, otherwise normalised to a total of 1.
@@ -83,8 +86,14 @@ pub struct Setup {
     pub per_mas: bool,
     /// `photons_per_pixel` or `mas`, before the level's exposure factor.
     pub exposure: f64,
-    /// `mu_per_mm[m][b]`: linear attenuation of material m at bin b, 1/mm.
+    /// `mu_per_mm[m][b]`: linear attenuation of material m over traced bin b, 1/mm.
     pub mu_per_mm: Vec<Vec<f64>>,
+    /// The relative error the traced bins hold (`spectral_tolerance`; larger when
+    /// `max_energy_bins` forced it; without `spectral_tolerance`, the smallest that
+    /// `max_energy_bins` allows; see [`spectral`]).
+    pub spectral_tolerance: f64,
+    /// Per traced bin: the centres of the first and last bin of the spectrum it groups, keV.
+    pub traced_bounds_kev: Vec<[f64; 2]>,
     /// Detector absorption per bin (1 for an ideal absorber).
     pub efficiency: Vec<f64>,
     /// Energy integrating or photon counting.
@@ -127,10 +136,28 @@ impl Setup {
         let BeamSpectrum {
             filtered: spectrum,
             file_bytes: spectrum_file_bytes,
+            lines_kev,
             ..
         } = beam_spectrum(loaded)?;
-        let spectrum = spectrum.coarsened(im.max_bins());
-        if !(spectrum.total_photons() > 0.0) {
+        let (names, materials) = materials_in_use(s, models);
+        let d = &im.detector;
+        let scintillator = d.scintillator.as_ref().map(|sc| {
+            (
+                resolve(s, &sc.material).expect("validated material"),
+                sc.thickness_mm,
+            )
+        });
+        let traced = spectral::traced(&spectral::Request {
+            spectrum: &spectrum,
+            lines_kev: &lines_kev,
+            materials: &materials,
+            scintillator: scintillator.as_ref().map(|(m, t)| (m, *t)),
+            response: d.response,
+            tolerance: im.spectral_tolerance,
+            max_bins: im.max_bins(),
+        });
+        let total = traced.photons.iter().sum::<f64>();
+        if !(total > 0.0) {
             return Err(err(
                 key.clone(),
                 "no photon of the spectrum passes the filtration".into(),
@@ -138,35 +165,11 @@ impl Setup {
             ));
         }
         let per_mas = im.mas.is_some();
-        let total = spectrum.total_photons();
         let spectrum_photons: Vec<f64> = if per_mas {
-            spectrum.photons.clone()
+            traced.photons.clone()
         } else {
-            spectrum.photons.iter().map(|n| n / total).collect()
+            traced.photons.iter().map(|n| n / total).collect()
         };
-        let (names, materials) = materials_in_use(s, models);
-        let mu_per_mm = materials
-            .iter()
-            .map(|m| {
-                spectrum
-                    .energies_kev
-                    .iter()
-                    .map(|&e| m.linear_attenuation_per_mm(e))
-                    .collect()
-            })
-            .collect();
-        let efficiency = match &im.detector.scintillator {
-            Some(sc) => {
-                let m = resolve(s, &sc.material).expect("validated material");
-                spectrum
-                    .energies_kev
-                    .iter()
-                    .map(|&e| 1.0 - libm::exp(-m.linear_attenuation_per_mm(e) * sc.thickness_mm))
-                    .collect()
-            }
-            None => vec![1.0; spectrum.energies_kev.len()],
-        };
-        let d = &im.detector;
         let blur = DetectorBlur {
             psf_sigma_mm: d.psf.as_ref().map(|p| p.sigma_mm),
             mtf: d.mtf.clone(),
@@ -189,12 +192,14 @@ impl Setup {
         Ok(Setup {
             materials,
             mean_energy_kev: spectrum.mean_energy_kev(),
-            energies_kev: spectrum.energies_kev.clone(),
+            energies_kev: traced.energies_kev,
             spectrum_photons,
             per_mas,
             exposure: im.photons_per_pixel.or(im.mas).expect("validated exposure"),
-            mu_per_mm,
-            efficiency,
+            mu_per_mm: traced.mu_per_mm,
+            efficiency: traced.efficiency,
+            spectral_tolerance: traced.tolerance,
+            traced_bounds_kev: traced.bounds_kev,
             response: d.response,
             gain: d.gain,
             white_level: d.white_level.unwrap_or(DEFAULT_WHITE_LEVEL),
@@ -293,6 +298,9 @@ pub struct BeamSpectrum {
     pub filtered: Spectrum,
     /// The bytes of `spectrum_file` as read.
     pub file_bytes: Option<Vec<u8>>,
+    /// The energies of the bins that hold the tube's characteristic lines (none for a
+    /// monochromatic or user spectrum).
+    pub lines_kev: Vec<f64>,
 }
 
 /// The spectrum `[imaging]` gives (`energy_kev`, `tube` with its filtration, or
@@ -310,6 +318,7 @@ pub fn beam_spectrum(loaded: &LoadedScenario) -> Result<BeamSpectrum, Vec<Diagno
             unfiltered: sp.clone(),
             filtered: sp,
             file_bytes: None,
+            lines_kev: Vec::new(),
         });
     }
     if let Some(t) = &im.tube {
@@ -329,6 +338,7 @@ pub fn beam_spectrum(loaded: &LoadedScenario) -> Result<BeamSpectrum, Vec<Diagno
             unfiltered,
             filtered,
             file_bytes: None,
+            lines_kev: Spectrum::tube_line_bins_kev(),
         });
     }
     let Some(file) = &im.spectrum_file else {
@@ -340,6 +350,7 @@ pub fn beam_spectrum(loaded: &LoadedScenario) -> Result<BeamSpectrum, Vec<Diagno
         unfiltered: sp.clone(),
         filtered: sp,
         file_bytes: Some(bytes),
+        lines_kev: Vec::new(),
     })
 }
 

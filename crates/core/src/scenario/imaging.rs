@@ -40,10 +40,18 @@ pub struct Imaging {
     /// per line (relative photon numbers; `#` starts a comment).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectrum_file: Option<String>,
-    /// Most energy bins traced per image: finer spectra are merged into this many bins
-    /// (photon-weighted energies, the photon total kept). Default 40.
+    /// Most energy bins traced per image: the spectrum's bins are grouped into at most this
+    /// many (never across an absorption edge of a material in the beam; the tube's lines on
+    /// their own). Default 40, or 1000 when `spectral_tolerance` is given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_energy_bins: Option<u32>,
+    /// The relative error of a layer's transmission that grouping the spectrum's bins may add,
+    /// for every material in the beam at every thickness down to 0.1 % transmission: the bins
+    /// are as many as it needs (at most `max_energy_bins`; when that is too few, a warning says
+    /// what they hold). Default: the finest that `max_energy_bins` allows. `rsasim validate` and
+    /// `rsasim spectrum` show the bins and the tolerance they hold.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectral_tolerance: Option<f64>,
     /// Expected photons reaching one pixel with no object in the beam, at the detector point
     /// nearest the source (elsewhere scaled by inverse square and obliquity). Give exactly one
     /// of `photons_per_pixel` and `mas` in attenuation mode.
@@ -160,9 +168,14 @@ impl Imaging {
         self.mode == ImagingMode::Attenuation
     }
 
-    /// The bin limit, default 40.
+    /// The bin limit: `max_energy_bins`, else 1000 with a `spectral_tolerance`, else 40.
     pub fn max_bins(&self) -> usize {
-        self.max_energy_bins.unwrap_or(40) as usize
+        let default = if self.spectral_tolerance.is_some() {
+            1000
+        } else {
+            40
+        };
+        self.max_energy_bins.unwrap_or(default) as usize
     }
 
     /// Rays per pixel side, s (default 1).

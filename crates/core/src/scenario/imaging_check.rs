@@ -282,6 +282,7 @@ impl Check<'_> {
             ("tube", im.tube.is_some()),
             ("spectrum_file", im.spectrum_file.is_some()),
             ("max_energy_bins", im.max_energy_bins.is_some()),
+            ("spectral_tolerance", im.spectral_tolerance.is_some()),
             ("photons_per_pixel", im.photons_per_pixel.is_some()),
             ("mas", im.mas.is_some()),
             ("detector", !im.detector.is_default()),
@@ -414,6 +415,15 @@ impl Check<'_> {
                     ip.key("max_energy_bins"),
                     format!("max_energy_bins {b} is out of range"),
                     "give 1 to 1000 (the default 40 keeps a tube spectrum's mean energy and HVL)",
+                );
+            }
+        }
+        if let Some(t) = im.spectral_tolerance {
+            if !(t.is_finite() && t > 0.0 && t < 1.0) {
+                self.err(
+                    ip.key("spectral_tolerance"),
+                    format!("spectral_tolerance {t} is out of range"),
+                    "give a relative error above 0 and below 1, e.g. 0.001 (the default)",
                 );
             }
         }

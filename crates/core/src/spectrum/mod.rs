@@ -43,12 +43,19 @@ pub struct Spectrum {
 
 impl Spectrum {
     /// The unfiltered spectrum of a tungsten-anode tube at `kvp` (an integer from 40 to 150) and
-    /// anode angle `anode_angle_deg` (6° to 22°), in 1 keV bins from 1 keV to the kVp, in photons
-    /// per bin per mm² per mAs at 1000 mm on the central axis (SpekPy 2.5.4, see
-    /// `data/spectra/README.md`). Between the tabulated angles (every 2°) the photon numbers are
-    /// interpolated linearly, within 0.7 % of SpekPy per bin. The error names the valid range.
+    /// anode angle `anode_angle_deg` (6° to 22°), in 0.05 keV bins from 1 keV to the kVp, in
+    /// photons per bin per mm² per mAs at 1000 mm on the central axis (SpekPy 2.5.4, see
+    /// `data/spectra/README.md`): the bremsstrahlung continuum interpolated from its 0.5 keV
+    /// table, the characteristic lines in their own bins. Between the tabulated angles (every
+    /// 2°) the photon numbers are interpolated linearly. The error names the valid range.
     pub fn tube(kvp: f64, anode_angle_deg: f64) -> Result<Spectrum, String> {
         tube::tungsten(kvp, anode_angle_deg)
+    }
+
+    /// The centres (keV) of the bins of [`Spectrum::tube`] spectra that can hold one of the
+    /// anode's characteristic lines (whether they do depends on the kVp).
+    pub fn tube_line_bins_kev() -> Vec<f64> {
+        tube::line_centres_kev()
     }
 
     /// One bin at `energy_kev` holding 1 photon (relative units).
@@ -166,37 +173,6 @@ impl Spectrum {
         0.5 * (lo + hi)
     }
 
-    /// At most `max_bins` bins (at least 1): bins without photons are dropped, then neighbouring
-    /// bins are merged into contiguous groups of equal count (sizes differing by at most one, the
-    /// larger groups first). A group keeps the sum of its photons (so the total is kept, up to
-    /// floating-point rounding) at its photon-weighted mean energy (so the mean energy is kept).
-    /// Used to bound the cost of tracing a polychromatic image.
-    pub fn coarsened(&self, max_bins: usize) -> Spectrum {
-        let kept: Vec<(f64, f64)> = self.pairs().filter(|&(_, n)| n > 0.0).collect();
-        let groups = max_bins.max(1).min(kept.len());
-        let mut energies_kev = Vec::with_capacity(groups);
-        let mut photons = Vec::with_capacity(groups);
-        if let Some(base) = kept.len().checked_div(groups) {
-            let extra = kept.len() % groups;
-            let mut start = 0;
-            for g in 0..groups {
-                let end = start + base + usize::from(g < extra);
-                let group = &kept[start..end];
-                let n: f64 = group.iter().map(|&(_, n)| n).sum();
-                let ne: f64 = group.iter().map(|&(e, n)| n * e).sum();
-                // A bin left alone keeps its energy exactly.
-                energies_kev.push(if let [(e, _)] = group { *e } else { ne / n });
-                photons.push(n);
-                start = end;
-            }
-        }
-        Spectrum {
-            energies_kev,
-            photons,
-            absolute: self.absolute,
-        }
-    }
-
     /// (energy, photons) of every bin.
     fn pairs(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
         self.energies_kev
@@ -305,37 +281,6 @@ mod tests {
     }
 
     #[test]
-    fn coarsened_keeps_total_and_mean_energy() {
-        let s = Spectrum::tube(100.0, 12.0).unwrap();
-        for max_bins in [1, 7, 30, 64, 98, 99, 1000] {
-            let c = s.coarsened(max_bins);
-            assert!(c.photons.len() <= max_bins.max(1), "{max_bins}");
-            assert!(c.energies_kev.windows(2).all(|w| w[0] < w[1]), "{max_bins}");
-            let rel = (c.total_photons() / s.total_photons() - 1.0).abs();
-            assert!(rel < 1e-14, "total off by {rel} at {max_bins}");
-            let de = (c.mean_energy_kev() - s.mean_energy_kev()).abs();
-            assert!(de < 1e-10, "mean energy off by {de} keV at {max_bins}");
-            assert!(c.absolute);
-        }
-        assert_eq!(s.coarsened(1000), s);
-    }
-
-    #[test]
-    fn coarsened_drops_empty_bins_and_merges_equal_counts() {
-        let s = Spectrum {
-            energies_kev: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
-            photons: vec![0.0, 1.0, 1.0, 0.0, 3.0, 1.0],
-            absolute: false,
-        };
-        let c = s.coarsened(2);
-        assert_eq!(c.photons, vec![2.0, 4.0]);
-        assert_eq!(c.energies_kev, vec![2.5, 5.25]);
-        assert_eq!(s.coarsened(0).photons, vec![6.0]);
-        let empty = s.filtered(|_| f64::INFINITY, 1.0).coarsened(4);
-        assert!(empty.photons.is_empty() && empty.energies_kev.is_empty());
-    }
-
-    #[test]
     fn mismatched_fields_do_not_panic() {
         let s = Spectrum {
             energies_kev: vec![10.0, 20.0],
@@ -343,7 +288,7 @@ mod tests {
             absolute: false,
         };
         assert_eq!(s.air_kerma_weights().len(), 1);
-        let _ = (s.coarsened(1), s.hvl_mm(|_| 1.0), s.filtered(|_| 1.0, 1.0));
+        let _ = (s.hvl_mm(|_| 1.0), s.filtered(|_| 1.0, 1.0));
         assert_eq!(s.mean_energy_kev(), 10.0);
     }
 }

@@ -1,17 +1,21 @@
-//! The shipped tube spectra and this module's arithmetic against SpekPy itself
-//! (`data/spectra/checks.tsv`, written by `data/spectra/regen.py`): mean energy, first HVL and
-//! photon fluence of filtered clinical settings, and spectra between the tabulated anode angles.
-//!
-//! The Al and Cu attenuation here is SpekPy's own (a test-only table); the simulator takes its
-//! attenuation from the material library.
+//! The shipped tube spectra and this module's arithmetic against SpekPy's own results in 1 keV
+//! bins (`data/spectra/checks.tsv`, written by `data/spectra/regen.py`): mean energy, first HVL
+//! and photon fluence of filtered clinical settings, and spectra between the tabulated anode
+//! angles. The tighter comparison, against SpekPy in 0.05 keV bins filtered with xraylib's
+//! attenuation, runs in `tests/physics.rs` (it needs the Python libraries).
 
 use super::Spectrum;
 
 const CHECKS: &str = include_str!("../../../../data/spectra/checks.tsv");
 
-/// Worst per-bin relative error of linear interpolation between tabulated angles, for bins holding
-/// at least [`BIN_FLOOR`] of the peak bin, as measured by `regen.py` (README: 0.66 %).
-const INTERPOLATION_MAX_BIN_ERROR: f64 = 0.007;
+/// Worst per-bin relative error between SpekPy's 1 keV spectra at angles between the tabulated
+/// ones and rsasim's 0.05 keV bins summed into them, for bins above 15 keV holding at least
+/// [`BIN_FLOOR`] of the peak bin: the angle interpolation (0.66 % at worst, measured by
+/// `regen.py`) plus the continuum's interpolation between its 0.5 keV samples against SpekPy's
+/// samples at 1 keV bin centres; the worst is the bin [69, 70) keV at 150 kVp, 7°, where the
+/// continuum steps down at tungsten's K edge (69.525 keV: the anode absorbs its own photons above
+/// it) and the 0.5 keV samples interpolate across the step (1.06 %).
+const INTERPOLATION_MAX_BIN_ERROR: f64 = 0.012;
 /// Worst relative error of the photon total between tabulated angles (README: 0.50 %).
 const INTERPOLATION_MAX_TOTAL_ERROR: f64 = 0.0051;
 /// Bins below this fraction of the peak are left out of the per-bin interpolation error.
@@ -32,16 +36,12 @@ struct Setting {
 /// The parsed checks file.
 struct Checks {
     settings: Vec<Setting>,
-    /// (energy keV, Al μ per mm, Cu μ per mm) at the bin centres 1.5, 2.5, … keV.
-    mu: Vec<(f64, f64, f64)>,
     /// (kVp, angle, photons per bin) computed by SpekPy between the tabulated angles.
     spectra: Vec<(f64, f64, Vec<f64>)>,
 }
 
 fn checks() -> Checks {
     let mut settings = Vec::new();
-    let mut mu_over_rho = Vec::new();
-    let (mut rho_al, mut rho_cu) = (0.0, 0.0);
     let mut spectra = Vec::new();
     for line in CHECKS.lines().filter(|l| !l.starts_with('#')) {
         let fields: Vec<&str> = line.split('\t').collect();
@@ -57,62 +57,13 @@ fn checks() -> Checks {
                 fluence: num(7),
                 fluence_unfiltered: num(8),
             }),
-            "density" if fields[1] == "Al" => rho_al = num(2),
-            "density" if fields[1] == "Cu" => rho_cu = num(2),
-            "mu" => mu_over_rho.push((num(1), num(2), num(3))),
+            // SpekPy's own attenuation, for SpekPy's arithmetic; rsasim filters with its library.
+            "density" | "mu" => {}
             "spectrum" => spectra.push((num(1), num(2), (3..fields.len()).map(num).collect())),
             other => panic!("unknown row kind {other}"),
         }
     }
-    // μ/ρ in cm²/g times ρ in g/cm³ is μ per cm; per mm is a tenth of that.
-    let mu = mu_over_rho
-        .into_iter()
-        .map(|(e, al, cu)| (e, al * rho_al / 10.0, cu * rho_cu / 10.0))
-        .collect();
-    Checks {
-        settings,
-        mu,
-        spectra,
-    }
-}
-
-/// SpekPy's μ per mm at a bin centre (column 1 Al, 2 Cu).
-fn mu_at(mu: &[(f64, f64, f64)], e: f64, cu: bool) -> f64 {
-    let row = mu[(e - 1.5) as usize];
-    assert_eq!(row.0, e, "no attenuation row for {e} keV");
-    if cu { row.2 } else { row.1 }
-}
-
-#[test]
-fn filtered_settings_match_spekpy() {
-    let c = checks();
-    assert!(c.settings.len() >= 6);
-    for s in &c.settings {
-        let what = format!(
-            "{} kVp {}° {} mm Al {} mm Cu",
-            s.kvp, s.angle_deg, s.al_mm, s.cu_mm
-        );
-        let raw = Spectrum::tube(s.kvp, s.angle_deg).unwrap();
-        let rel = raw.total_photons() / s.fluence_unfiltered - 1.0;
-        assert!(
-            rel.abs() < 0.01,
-            "{what}: unfiltered photons off by {rel:e}"
-        );
-        let beam = raw
-            .filtered(|e| mu_at(&c.mu, e, false), s.al_mm)
-            .filtered(|e| mu_at(&c.mu, e, true), s.cu_mm);
-        let rel = beam.total_photons() / s.fluence - 1.0;
-        assert!(rel.abs() < 0.01, "{what}: filtered photons off by {rel:e}");
-        let de = beam.mean_energy_kev() - s.mean_energy_kev;
-        assert!(de.abs() < 0.2, "{what}: mean energy off by {de} keV");
-        let hvl = beam.hvl_mm(|e| mu_at(&c.mu, e, false));
-        let rel = hvl / s.hvl1_mm_al - 1.0;
-        assert!(
-            rel.abs() < 0.01,
-            "{what}: HVL {hvl} mm Al vs {}",
-            s.hvl1_mm_al
-        );
-    }
+    Checks { settings, spectra }
 }
 
 /// What a scenario runs: the filtration and the HVL with the shipped material library's
@@ -126,8 +77,13 @@ fn filtered_settings_match_spekpy_with_the_material_library() {
             "{} kVp {}° {} mm Al {} mm Cu",
             s.kvp, s.angle_deg, s.al_mm, s.cu_mm
         );
-        let beam = Spectrum::tube(s.kvp, s.angle_deg)
-            .unwrap()
+        let raw = Spectrum::tube(s.kvp, s.angle_deg).unwrap();
+        let rel = raw.total_photons() / s.fluence_unfiltered - 1.0;
+        assert!(
+            rel.abs() < 0.01,
+            "{what}: unfiltered photons off by {rel:e}"
+        );
+        let beam = raw
             .filtered(|e| al.linear_attenuation_per_mm(e), s.al_mm)
             .filtered(|e| cu.linear_attenuation_per_mm(e), s.cu_mm);
         let rel = beam.total_photons() / s.fluence - 1.0;
@@ -155,11 +111,23 @@ fn interpolation_between_angles_stays_within_the_documented_error() {
     assert!(!c.spectra.is_empty());
     for (kvp, angle, exact) in &c.spectra {
         assert!(angle % 2.0 == 1.0, "{angle}° is a tabulated angle");
-        let ours = Spectrum::tube(*kvp, *angle).unwrap();
+        // rsasim's 0.05 keV bins summed into SpekPy's 1 keV bins.
+        let fine = Spectrum::tube(*kvp, *angle).unwrap();
+        let ours = Spectrum {
+            energies_kev: (0..exact.len()).map(|i| 1.5 + i as f64).collect(),
+            photons: fine.photons.chunks(20).map(|c| c.iter().sum()).collect(),
+            absolute: true,
+        };
         assert_eq!(ours.photons.len(), exact.len());
         let peak = exact.iter().cloned().fold(0.0, f64::max);
         for (i, (&n, &x)) in ours.photons.iter().zip(exact).enumerate() {
-            if x >= BIN_FLOOR * peak {
+            // Below 15 keV a 1 keV bin's SpekPy value (its density at the centre times 1 keV)
+            // and the sum of rsasim's 0.05 keV bins differ by more than the angle interpolation:
+            // the anode's self-absorption bends the spectrum there within a bin (tests/physics.rs
+            // compares whole beams, interpolated angles among them, with SpekPy's 0.05 keV bins).
+            // The last bin, where the spectrum falls to zero at the kVp, likewise.
+            let last = i + 1 == exact.len();
+            if x >= BIN_FLOOR * peak && ours.energies_kev[i] > 15.0 && !last {
                 let rel = n / x - 1.0;
                 assert!(
                     rel.abs() <= INTERPOLATION_MAX_BIN_ERROR,
