@@ -386,10 +386,23 @@ pub struct ExportArgs {
     /// Export only this run (repeatable), e.g. --run n0-r00. Default: every run.
     #[arg(long = "run", value_name = "RUN_ID")]
     pub runs: Vec<String>,
-    /// Write I_max − value, so that beads and implants are dark on a bright background as in
-    /// fluoroscopy (binary-mode images have them bright).
-    #[arg(long)]
-    pub invert: bool,
+    /// How dense matter (beads, implants, bone) looks in the exported images: `dark` (the
+    /// default, what XMALab's default marker detection and Autoscoper's radiograph rendering
+    /// expect) or `bright` (XMALab's frame specification then says `white`). Binary-mode and
+    /// radiograph-polarity images show it bright, raw detector images dark; the export inverts
+    /// (I_max − value) where they differ from the choice.
+    #[arg(long, value_name = "SHADE", default_value = "dark")]
+    pub dense_matter: DenseMatterArg,
+    /// XMALab: write the calibration box as XMALab's calibration object (frame specification
+    /// and four reference beads, for XMALab's own cube calibration). `when-possible` (default):
+    /// in every run whose box has four beads XMALab can tell apart in every calibration view,
+    /// on plates not seen edge-on and spanning a tetrahedron (other runs are named in a note);
+    /// `required`: an error when a run has no such four; `none`: cameras only.
+    #[arg(long, value_name = "WHEN", default_value = "when-possible")]
+    pub calibration_object: CalibrationObjectArg,
+    /// Autoscoper: the voxel size of the model volumes (isotropic), mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.5)]
+    pub voxel_mm: f64,
     /// Cameras from the calibration a software measured (sources and detector poses of this
     /// results file in every run folder, e.g. measured-rsasim-dlt-markers.json) instead of
     /// the true calibration.
@@ -601,6 +614,46 @@ impl From<ModelMethod> for rsasim::reconstruct::ModelMethod {
         match m {
             ModelMethod::Markers => Self::Markers,
             ModelMethod::Silhouette => Self::Silhouette,
+        }
+    }
+}
+
+/// `export --dense-matter`: how dense matter looks in the exported images
+/// ([`rsasim::interop::export::DenseMatter`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DenseMatterArg {
+    /// Beads and implants dark on a bright background.
+    Dark,
+    /// Beads and implants bright on a dark background.
+    Bright,
+}
+
+impl From<DenseMatterArg> for rsasim::interop::export::DenseMatter {
+    fn from(d: DenseMatterArg) -> Self {
+        match d {
+            DenseMatterArg::Dark => Self::Dark,
+            DenseMatterArg::Bright => Self::Bright,
+        }
+    }
+}
+
+/// `export --calibration-object` ([`rsasim::interop::export::CalibrationObject`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CalibrationObjectArg {
+    /// In every run whose box has four reference beads by rule.
+    WhenPossible,
+    /// In every run, or an error.
+    Required,
+    /// Never.
+    None,
+}
+
+impl From<CalibrationObjectArg> for rsasim::interop::export::CalibrationObject {
+    fn from(c: CalibrationObjectArg) -> Self {
+        match c {
+            CalibrationObjectArg::WhenPossible => Self::WhenPossible,
+            CalibrationObjectArg::Required => Self::Required,
+            CalibrationObjectArg::None => Self::Omit,
         }
     }
 }

@@ -13,8 +13,10 @@ pub fn execute(args: ExportArgs) -> Outcome {
     let options = Options {
         target: args.to.into(),
         runs: args.runs,
-        invert: args.invert,
+        dense_matter: args.dense_matter.into(),
         calibration_from: args.calibration_from,
+        calibration_object: args.calibration_object.into(),
+        voxel_mm: args.voxel_mm,
     };
     let dir = &args.dir;
     let start = Instant::now();

@@ -112,7 +112,7 @@ impl MeshBvh {
     /// Every parameter `t` (any real, not only the segment's) at which the line
     /// `origin + t·direction` (mesh frame, mm) crosses the surface, sorted: the f64 reference
     /// (see the module docs). Empty for a zero direction.
-    pub(super) fn line_crossings(&self, origin: DVec3, direction: DVec3) -> Vec<f64> {
+    pub fn line_crossings(&self, origin: DVec3, direction: DVec3) -> Vec<f64> {
         let mut ts = Vec::new();
         let nodes = &self.bvh.nodes;
         if nodes.is_empty() || direction == DVec3::ZERO {

@@ -9,11 +9,13 @@
 //! DEST/<run>/calibration/<detector>_MayaCam.txt   MayaCam 2.0, one per detector (both programs)
 //! DEST/<run>/calibration/dlt11.csv                 DLT-11: 11 rows, one column per detector (xmalab)
 //! DEST/<run>/calibration/frame_specification.csv   the box beads, box frame (xmalab)
-//! DEST/<run>/calibration/references.txt            four reference beads (xmalab)
+//! DEST/<run>/calibration/references.ref            four reference beads (xmalab)
 //! DEST/<run>/images/<exposure>-<detector>/<exposure>-<detector>.0001.tif
 //! DEST/<run>/models/<phantom>_markers.csv          bead names and local coordinates (xmalab)
 //! DEST/<run>/models/<phantom>.obj | .stl           the model mesh, local frame, mm
-//! DEST/<run>/<exposure>.cfg                        Autoscoper trial (autoscoper)
+//! DEST/<run>/<exposure>.cfg                        Autoscoper trial per exposure with a model (autoscoper)
+//! DEST/<run>/truth/<exposure>_<phantom>.tra        the true pose of each volume (autoscoper)
+//! DEST/volumes/<phantom>.tif | .stl                each model as Autoscoper's volume and mesh (autoscoper)
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -21,7 +23,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use super::camera::PinholeCamera;
-use super::{autoscoper, xmalab};
+use super::{autoscoper, reference_beads, volume, xmalab};
 use crate::diagnostic::Diagnostic;
 use crate::expand::{DetectorState, Run};
 use crate::geometry::rotation_from_rows;
@@ -52,6 +54,50 @@ impl Target {
     }
 }
 
+/// How dense matter looks in exported images.
+///
+/// Both programs expect it dark by default: XMALab's marker detection (method 0, its default)
+/// and its calibration-object blob detection look for dark blobs unless the frame specification's
+/// header holds `white` (`CalibrationObject::loadCoords`); Autoscoper's radiograph kernels
+/// compare the images with digitally reconstructed radiographs rendered as `1 − value`, so dense
+/// matter is dark there too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DenseMatter {
+    /// Beads and implants dark on a bright background (the default): raw detector images are
+    /// written as they are, binary-mode and `polarity = "radiograph"` images as `I_max − value`.
+    #[default]
+    Dark,
+    /// Beads and implants bright: binary-mode and radiograph images as they are, raw detector
+    /// images as `I_max − value`. XMALab's frame specification then says `white`.
+    Bright,
+}
+
+/// Whether the run's own images show dense matter bright: binary mode (beads and models at
+/// I_max) and attenuation mode with `polarity = "radiograph"`; raw detector values show it dark.
+pub fn dense_matter_bright_in(setup: &Setup) -> bool {
+    match &setup.physics {
+        None => true,
+        Some(p) => matches!(
+            p.polarity,
+            rsasim_core::response::Polarity::Radiograph { .. }
+        ),
+    }
+}
+
+/// Whether an XMALab export holds the calibration box as XMALab's calibration object (frame
+/// specification and four reference beads, for XMALab's own cube calibration).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CalibrationObject {
+    /// In every run whose box has four reference beads by the rule of [`reference_beads`];
+    /// other runs are named in a note and in the export's README.
+    #[default]
+    WhenPossible,
+    /// In every run; an input error (nothing written) when a run's box has no four.
+    Required,
+    /// Never: the cameras alone (XMALab's "external calibration").
+    Omit,
+}
+
 /// Options of `rsasim export`.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -59,8 +105,12 @@ pub struct Options {
     pub target: Target,
     /// Run ids to export; empty: every run.
     pub runs: Vec<String>,
-    /// Write `I_max − value` (beads and implants dark on a bright background).
-    pub invert: bool,
+    /// How dense matter (beads, implants, bone) looks in the exported images.
+    pub dense_matter: DenseMatter,
+    /// Autoscoper: the voxel size of the model volumes, mm.
+    pub voxel_mm: f64,
+    /// Whether to write the calibration box as XMALab's calibration object (XMALab only).
+    pub calibration_object: CalibrationObject,
     /// Take each beamline's source and detector pose from this results file of every run folder
     /// (e.g. `measured-rsasim-dlt-markers.json`) instead of the truth.
     pub calibration_from: Option<String>,
@@ -105,6 +155,8 @@ struct RunExport {
     truth: Truth,
     dir: PathBuf,
     cameras: Vec<(String, PinholeCamera)>,
+    /// XMALab: the calibration box and its four reference beads, or why no four qualify.
+    references: Option<(usize, Result<[usize; 4], reference_beads::NoFour>)>,
 }
 
 /// Exports `out` into the new folder `dest` (see the module docs). With `truth_dir` (the blind
@@ -184,11 +236,35 @@ pub fn export(
             }
         };
         let cameras = cameras(&truth.run, calibration.as_ref(), &dir, options)?;
-        runs.push(RunExport {
+        let mut run = RunExport {
             truth,
             dir,
             cameras,
-        });
+            references: None,
+        };
+        if options.target == Target::Xmalab && options.calibration_object != CalibrationObject::Omit
+        {
+            let cal = run
+                .truth
+                .run
+                .phantoms
+                .iter()
+                .position(|p| p.kind == "calibration_box");
+            if let Some(c) = cal {
+                let (beads, views) = reference_views(&run, &setup, &run.truth.run.phantoms[c])?;
+                let choice = reference_beads::choose(&beads, &views);
+                if let (Err(e), CalibrationObject::Required) = (&choice, options.calibration_object)
+                {
+                    return Err(Error::Input(vec![Diagnostic::file_error(
+                        &run.dir.join("truth.json"),
+                        format!("run {id}, calibration box `{}`: {e}", run.truth.run.phantoms[c].id),
+                    )
+                    .with_help("XMALab's cube calibration needs four beads it can tell apart in every calibration view, on plates not seen edge-on, spanning a tetrahedron; the MayaCam cameras hold the true calibration without it (XMALab: \"New dataset with external calibration\"); export with --calibration-object when-possible to write the cube files only where four qualify")]));
+                }
+                run.references = Some((c, choice));
+            }
+        }
+        runs.push(run);
     }
     let missing: Vec<&String> = options
         .runs
@@ -218,10 +294,29 @@ pub fn export(
         refuse_inside(t, dest)?;
     }
     check_images(&runs)?;
+    let volumes = if options.target == Target::Autoscoper {
+        model_volumes(&runs, &setup, options.voxel_mm)?
+    } else {
+        Vec::new()
+    };
     refuse_inside(out, dest)?;
     let target =
         OutputTarget::claim(dest, FolderKind::Export).map_err(|d| Error::Input(vec![*d]))?;
     let mut notes = target.notes.clone();
+    let without_cube: Vec<&RunExport> = runs
+        .iter()
+        .filter(|r| matches!(r.references, Some((_, Err(_)))))
+        .collect();
+    if let Some(first) = without_cube.first()
+        && let Some((_, Err(why))) = &first.references
+    {
+        notes.push(format!(
+            "XMALab's calibration object (frame_specification.csv, references.ref) is not written for {} of {} run(s): in run {}, {why}. The cameras hold the calibration (XMALab: \"New dataset with external calibration\")",
+            without_cube.len(),
+            runs.len(),
+            first.truth.run.id
+        ));
+    }
     let staged = target.stage().map_err(|e| Error::Write(e.to_string()))?;
     let root = staged.path().to_path_buf();
     let mut files = 0usize;
@@ -234,9 +329,13 @@ pub fn export(
         files += 1;
         Ok(())
     };
-    write("README.md", readme(out, options, &runs).as_bytes())?;
+    write("README.md", readme(out, options, &runs, &setup).as_bytes())?;
+    for v in &volumes {
+        write(&format!("volumes/{}.tif", v.phantom), &v.tiff)?;
+        write(&format!("volumes/{}.stl", v.phantom), &v.stl)?;
+    }
     for run in &runs {
-        write_run(run, &setup, options, &mut write)?;
+        write_run(run, &setup, options, &volumes, &mut write)?;
     }
     let committed = staged.commit().map_err(|e| Error::Write(e.to_string()))?;
     notes.extend(committed.notes);
@@ -451,6 +550,195 @@ fn cameras(
     Ok(out)
 }
 
+/// A model as Autoscoper's volume: its grid, the TIFF stack and the mesh in the volume frame.
+struct ModelVolume {
+    phantom: String,
+    grid: volume::Grid,
+    tiff: Vec<u8>,
+    stl: Vec<u8>,
+}
+
+/// The reference energy of the volumes' attenuation values: the mean energy of the filtered
+/// spectrum in attenuation mode, 60 keV in binary mode.
+pub fn volume_energy_kev(setup: &Setup) -> f64 {
+    setup.physics.as_ref().map_or(60.0, |p| p.mean_energy_kev)
+}
+
+/// The volume of every mesh phantom that some exported exposure holds (see [`volume`]): inside
+/// voxels hold μ of the phantom's material at [`volume_energy_kev`]; a phantom without a
+/// material (binary mode) holds half of full scale, 32768.
+fn model_volumes(
+    runs: &[RunExport],
+    setup: &Setup,
+    voxel_mm: f64,
+) -> Result<Vec<ModelVolume>, Error> {
+    let mut ids: Vec<&String> = runs
+        .iter()
+        .flat_map(|r| r.truth.run.exposures.iter().flat_map(|e| e.phantoms.iter()))
+        .filter(|p| setup.meshes.contains_key(*p))
+        .collect();
+    ids.sort();
+    ids.dedup();
+    let energy = volume_energy_kev(setup);
+    let mut out = Vec::new();
+    for id in ids {
+        let mesh = &setup.meshes[id];
+        let scenario_file = Path::new("scenario.toml");
+        let refuse = |why: String| {
+            Error::Input(vec![Diagnostic::file_error(scenario_file, format!("phantom `{id}`: {why}"))
+                .with_help("give --voxel-mm a size that keeps the model's volume within 2^28 voxels (e.g. 0.5 or 1)")])
+        };
+        let grid = volume::Grid::of_mesh(mesh, voxel_mm).map_err(&refuse)?;
+        let material = setup
+            .scenario
+            .phantoms
+            .iter()
+            .find(|p| &p.id == id)
+            .and_then(|p| p.material.as_deref())
+            .and_then(|m| rsasim_core::attenuation::setup::resolve(&setup.scenario, m));
+        let value = match &material {
+            Some(m) => volume::voxel_value(m.linear_attenuation_per_mm(energy)),
+            None => 32768,
+        };
+        let samples: Vec<u16> = volume::inside(mesh, &grid)
+            .into_iter()
+            .map(|inside| if inside { value } else { 0 })
+            .collect();
+        if !samples.iter().any(|&v| v > 0) {
+            return Err(refuse(format!(
+                "no voxel centre of {voxel_mm} mm lies inside the mesh (Autoscoper refuses an empty volume)"
+            )));
+        }
+        let [w, h, d] = grid.dims;
+        let inside = match &material {
+            Some(m) => format!(
+                "{value} inside = round(6553.5 * mu), mu of {} at {energy:.3} keV in 1/mm",
+                m.name
+            ),
+            None => format!("{value} inside (no material: binary mode)"),
+        };
+        let description = format!(
+            "rsasim export: phantom {id} as an Autoscoper volume, {w}x{h}x{d} voxels of {voxel_mm} mm, {inside}, 0 outside; VolumeFlip 0 1 1"
+        );
+        let tiff = crate::output::tiff::encode_tiff_stack(
+            w,
+            h,
+            d,
+            &samples,
+            &TiffFacts {
+                description: &description,
+                software: &crate::output::program(),
+                pixel_pitch_mm: [voxel_mm, voxel_mm],
+                i_max: u16::MAX,
+            },
+        )
+        .map_err(Error::Write)?;
+        let mut stl = Vec::new();
+        crate::phantom::mesh_io::write_stl(
+            &volume::mesh_in_volume_frame(mesh, grid.offset_mm),
+            &mut stl,
+        )
+        .map_err(Error::Write)?;
+        out.push(ModelVolume {
+            phantom: id.clone(),
+            grid,
+            tiff,
+            stl,
+        });
+    }
+    Ok(out)
+}
+
+/// The box beads (with their plates' normals) and the calibration views of a run, for the
+/// choice of XMALab's reference beads: every image of an exposure that holds the box, seen
+/// through the run's true camera.
+fn reference_views(
+    run: &RunExport,
+    setup: &Setup,
+    cal: &crate::expand::PhantomState,
+) -> Result<(Vec<reference_beads::BoxBead>, Vec<reference_beads::View>), Error> {
+    // Plate normals from the scenario's plates (box frame), turned by the box's pose.
+    let plates: Vec<(String, DVec3)> = setup
+        .scenario
+        .phantoms
+        .iter()
+        .filter(|p| p.id == cal.id)
+        .filter_map(|p| p.calibration_box.as_ref())
+        .flat_map(|b| {
+            crate::phantom::calibration_box::box_markers(b)
+                .into_iter()
+                .zip(std::iter::repeat(b))
+        })
+        .filter_map(|(m, b)| {
+            let plate = b.plates.iter().find(|p| Some(&p.id) == m.plate.as_ref())?;
+            let local = crate::geometry::rotation_xyz_deg(plate.rotation_deg) * DVec3::Z;
+            Some((m.id, cal.rotation * local))
+        })
+        .collect();
+    let beads: Vec<reference_beads::BoxBead> = cal
+        .markers
+        .iter()
+        .map(|m| reference_beads::BoxBead {
+            position_mm: m.position_mm,
+            diameter_mm: m.diameter_mm,
+            plate_normal: plates.iter().find(|(id, _)| *id == m.id).map(|(_, n)| *n),
+        })
+        .collect();
+    let cameras = super::camera::run_cameras(&run.truth.run)
+        .map_err(|e| Error::Input(vec![Diagnostic::file_error(&run.dir.join("truth.json"), e)]))?;
+    let mut views = Vec::new();
+    for image in &run.truth.images {
+        let Some(exposure) = run
+            .truth
+            .run
+            .exposures
+            .iter()
+            .find(|e| e.id == image.exposure)
+        else {
+            continue;
+        };
+        if !exposure.phantoms.contains(&cal.id) {
+            continue;
+        }
+        let Some(k) = run
+            .truth
+            .run
+            .detectors
+            .iter()
+            .position(|d| d.id == image.detector)
+        else {
+            continue;
+        };
+        let (source_mm, camera) = cameras[k].clone();
+        let in_view: Vec<(DVec3, f64)> = run
+            .truth
+            .run
+            .phantoms
+            .iter()
+            .filter(|p| exposure.phantoms.contains(&p.id))
+            .flat_map(|p| p.markers.iter().map(|m| (m.position_mm, m.diameter_mm)))
+            .collect();
+        let hidden = cal
+            .markers
+            .iter()
+            .map(|m| {
+                image
+                    .markers
+                    .iter()
+                    .any(|p| p.phantom == cal.id && p.id == m.id && p.occluded == Some(true))
+            })
+            .collect();
+        views.push(reference_beads::View {
+            detector: image.detector.clone(),
+            source_mm,
+            camera,
+            beads: in_view,
+            hidden,
+        });
+    }
+    Ok((beads, views))
+}
+
 /// An image for the other program: rows flipped (see [`super::camera`]), optionally inverted,
 /// scaled to the full 16-bit range: `round(value · 65535 / I_max)`.
 pub fn export_pixels(pixels: &[u16], width: u32, i_max: u16, invert: bool) -> Vec<u16> {
@@ -471,10 +759,13 @@ fn write_run(
     run: &RunExport,
     setup: &Setup,
     options: &Options,
+    volumes: &[ModelVolume],
     write: &mut dyn FnMut(&str, &[u8]) -> Result<(), Error>,
 ) -> Result<(), Error> {
     let id = &run.truth.run.id;
     let xmalab = options.target == Target::Xmalab;
+    let dense_bright = options.dense_matter == DenseMatter::Bright;
+    let invert = dense_matter_bright_in(setup) != dense_bright;
     for (det, cam) in &run.cameras {
         write(
             &format!("{id}/calibration/{det}_MayaCam.txt"),
@@ -501,22 +792,17 @@ fn write_run(
             text.push('\n');
         }
         write(&format!("{id}/calibration/dlt11.csv"), text.as_bytes())?;
-        if let Some(cal) = run
-            .truth
-            .run
-            .phantoms
-            .iter()
-            .find(|p| p.kind == "calibration_box")
-        {
+        if let Some((c, Ok(four))) = &run.references {
+            let cal = &run.truth.run.phantoms[*c];
             let beads: Vec<DVec3> = cal.markers.iter().map(|m| m.position_mm).collect();
             let ids: Vec<String> = cal.markers.iter().map(|m| m.id.clone()).collect();
             write(
                 &format!("{id}/calibration/frame_specification.csv"),
-                xmalab::frame_specification(&beads).as_bytes(),
+                xmalab::frame_specification(&beads, dense_bright).as_bytes(),
             )?;
             write(
-                &format!("{id}/calibration/references.txt"),
-                xmalab::references(&ids, &xmalab::reference_beads(&beads)).as_bytes(),
+                &format!("{id}/calibration/references.ref"),
+                xmalab::references(&ids, four).as_bytes(),
             )?;
         }
     }
@@ -524,11 +810,12 @@ fn write_run(
     for image in &run.truth.images {
         let stem = format!("{}-{}", image.exposure, image.detector);
         let (det, (w, h, pixels)) = run_image(run, image, &stem)?;
-        let converted = export_pixels(&pixels, w, det.i_max(), options.invert);
+        let converted = export_pixels(&pixels, w, det.i_max(), invert);
         let description = format!(
-            "rsasim export: run {id}, image {stem}, rows flipped (bottom row first), {}scaled to 0..65535 from 0..{}",
-            if options.invert { "inverted and " } else { "" },
-            det.i_max()
+            "rsasim export: run {id}, image {stem}, rows flipped (bottom row first), {}scaled to 0..65535 from 0..{}, dense matter {}",
+            if invert { "inverted and " } else { "" },
+            det.i_max(),
+            if dense_bright { "bright" } else { "dark" }
         );
         let bytes = encode_tiff(
             w,
@@ -581,41 +868,101 @@ fn write_run(
     }
     if !xmalab {
         for exposure in &run.truth.run.exposures {
-            let models: Vec<&str> = exposure
+            let trial: Vec<&ModelVolume> = exposure
                 .phantoms
                 .iter()
-                .filter(|p| setup.meshes.contains_key(*p))
-                .map(String::as_str)
+                .filter_map(|p| volumes.iter().find(|v| &v.phantom == p))
                 .collect();
+            if trial.is_empty() {
+                // Nothing to track (e.g. the box alone): Autoscoper refuses a trial without a
+                // volume (`Trial::validate`: "There must be at least one volume file").
+                continue;
+            }
             let text = autoscoper::trial_cfg(
                 &run.cameras
                     .iter()
                     .map(|(d, _)| d.as_str())
                     .collect::<Vec<_>>(),
                 &exposure.id,
-                &models,
+                &trial
+                    .iter()
+                    .map(|v| autoscoper::TrialVolume {
+                        phantom: &v.phantom,
+                        voxel_mm: v.grid.voxel_mm,
+                        offset_mm: v.grid.offset_mm.to_array(),
+                    })
+                    .collect::<Vec<_>>(),
             );
             write(&format!("{id}/{}.cfg", exposure.id), text.as_bytes())?;
+            for v in trial {
+                let Some(phantom) = run.truth.run.phantoms.iter().find(|p| p.id == v.phantom)
+                else {
+                    continue;
+                };
+                let m = volume::tra_matrix(&phantom.pose(), v.grid.offset_mm);
+                write(
+                    &format!("{id}/truth/{}_{}.tra", exposure.id, v.phantom),
+                    volume::tra_line(&m).as_bytes(),
+                )?;
+            }
         }
     }
     Ok(())
 }
 
-fn readme(out: &Path, options: &Options, runs: &[RunExport]) -> String {
+fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> String {
+    let dense_bright = options.dense_matter == DenseMatter::Bright;
+    let invert = dense_matter_bright_in(setup) != dense_bright;
     let calibration = match &options.calibration_from {
         None => "the TRUE calibration (the exact source and detector poses of truth.json): the \
                  exam's known calibration"
             .to_string(),
         Some(name) => format!("the calibration measured in each run's `{name}`"),
     };
+    let cube = if options.target != Target::Xmalab {
+        String::new()
+    } else {
+        let with: Vec<&str> = runs
+            .iter()
+            .filter(|r| matches!(r.references, Some((_, Ok(_)))))
+            .map(|r| r.truth.run.id.as_str())
+            .collect();
+        let without: Vec<String> = runs
+            .iter()
+            .filter_map(|r| match &r.references {
+                Some((_, Err(e))) => Some(format!("  - run {}: {e}\n", r.truth.run.id)),
+                _ => None,
+            })
+            .collect();
+        format!(
+            "- XMALab's calibration object (`calibration/frame_specification.csv`, \
+             `calibration/references.ref`, for XMALab's own cube calibration) is written for {} of \
+             {} run(s). Its four reference beads are chosen by rule: visible and at least {} bead \
+             diameters from every other bead's image and from the border in every calibration \
+             view, on plates seen at least {}° from edge-on, spanning a tetrahedron of at least {} \
+             of the beads' bounding box.\n{}",
+            with.len(),
+            runs.len(),
+            reference_beads::MIN_SEPARATION_DIAMETERS,
+            reference_beads::MIN_PLATE_ANGLE_DEG,
+            reference_beads::MIN_VOLUME_FRACTION,
+            if without.is_empty() {
+                String::new()
+            } else {
+                format!("  Not written:\n{}", without.concat())
+            }
+        )
+    };
     format!(
         "# rsasim export for {program}\n\n\
          Written by {version} from the output folder `{out}` ({n} run(s)).\n\n\
          - Cameras (MayaCam 2.0{dlt}) hold {calibration}.\n\
+         {cube}\
          - Images are the run's TIFFs with their rows flipped (bottom row first), {inv}scaled to \
-         the full 16-bit range. The flip makes each beamline a standard pinhole camera; pixel \
+         the full 16-bit range: dense matter (beads, implants, bone) is {shade}. The flip makes each beamline a standard pinhole camera; pixel \
          coordinates in these images are not rsasim's.\n\
          - Units: mm; world frame: the calibration box frame of truth.json.\n\
+         {volumes}\
          - One folder per run, since every run has its own geometry. See rsasim's README, \
          \"XMALab and Autoscoper\", for the steps in {program} and how to score its results with \
          `rsasim evaluate`.\n",
@@ -631,10 +978,28 @@ fn readme(out: &Path, options: &Options, runs: &[RunExport]) -> String {
         } else {
             ""
         },
-        inv = if options.invert {
+        inv = if invert {
             "inverted (I_max − value) and "
         } else {
             ""
+        },
+        shade = if dense_bright { "bright" } else { "dark" },
+        volumes = if options.target == Target::Autoscoper {
+            format!(
+                "- Volumes (`volumes/<phantom>.tif`, one multi-page 16-bit TIFF per model, \
+                 `VolumeFlip 0 1 1`, voxels of {} mm): the model mesh voxelized (a voxel is \
+                 inside when its centre is), inside = round(6553.5 · μ) with μ in 1/mm of the \
+                 phantom's material at {:.3} keV, 0 outside; `volumes/<phantom>.stl` is the mesh \
+                 in the volume frame. The volume frame is the phantom's frame shifted by the \
+                 offset each trial's `.cfg` states in a comment. `<run>/truth/<exposure>_<phantom>.tra` \
+                 holds the true pose of each volume: one line of 16 comma-separated values, the \
+                 4×4 matrix world ← volume row by row (Autoscoper's \"matrix, row\" layout). \
+                 A trial is written for every exposure holding a model.\n",
+                options.voxel_mm,
+                volume_energy_kev(setup)
+            )
+        } else {
+            String::new()
         },
     )
 }

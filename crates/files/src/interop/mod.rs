@@ -7,4 +7,6 @@ pub mod autoscoper;
 pub mod camera;
 pub mod export;
 pub mod mesh_text;
+pub mod reference_beads;
+pub mod volume;
 pub mod xmalab;

@@ -31,41 +31,16 @@ use crate::geometry::{fit_rigid, rotation_rows, triangulate};
 use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
 
-/// The frame specification of a calibration object: header, then `x,y,z` per bead.
-pub fn frame_specification(beads_mm: &[DVec3]) -> String {
-    let mut s = String::from("x,y,z\n");
+/// The frame specification of a calibration object: a header line, then `x,y,z` per bead.
+/// XMALab's blob detection looks for dark beads unless the header holds `white`
+/// (`CalibrationObject::loadCoords`); `white_beads` writes the header XMALab itself writes then
+/// (`CalibrationObject::saveCoords`).
+pub fn frame_specification(beads_mm: &[DVec3], white_beads: bool) -> String {
+    let mut s = String::from(if white_beads { "white\n" } else { "x,y,z\n" });
     for b in beads_mm {
         s += &format!("{},{},{}\n", b.x, b.y, b.z);
     }
     s
-}
-
-/// Indices of four beads spread far apart: the first bead, then repeatedly the bead farthest from
-/// those already chosen (fewer when there are fewer beads).
-pub fn reference_beads(beads_mm: &[DVec3]) -> Vec<usize> {
-    let mut chosen: Vec<usize> = Vec::new();
-    if beads_mm.is_empty() {
-        return chosen;
-    }
-    chosen.push(0);
-    while chosen.len() < 4.min(beads_mm.len()) {
-        let next = (0..beads_mm.len())
-            .filter(|i| !chosen.contains(i))
-            .max_by(|&a, &b| {
-                let d = |i: usize| {
-                    chosen
-                        .iter()
-                        .map(|&c| beads_mm[i].distance(beads_mm[c]))
-                        .fold(f64::INFINITY, f64::min)
-                };
-                d(a).total_cmp(&d(b)).then(b.cmp(&a))
-            });
-        match next {
-            Some(n) => chosen.push(n),
-            None => break,
-        }
-    }
-    chosen
 }
 
 /// A name XMALab's references reader accepts: letters and digits of `id` (others dropped), at
@@ -532,15 +507,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn reference_beads_are_spread() {
-        let b = [
-            DVec3::ZERO,
-            DVec3::new(1.0, 0.0, 0.0),
-            DVec3::new(10.0, 0.0, 0.0),
-            DVec3::new(0.0, 10.0, 0.0),
-            DVec3::new(0.0, 0.0, 10.0),
-        ];
-        assert_eq!(reference_beads(&b), vec![0, 2, 3, 4]);
+    fn reference_names_are_what_xmalabs_reader_takes() {
+        // `CalibrationObject::loadCoords` reads `%i %20[0-9a-zA-Z ]s`.
         assert_eq!(
             references(
                 &[

@@ -79,6 +79,45 @@ pub fn encode_tiff(
     }
 }
 
+/// Encodes a volume of `depth` pages of `width × height` 16-bit samples (page-major, then
+/// row-major) as one multi-page TIFF in memory: one IFD per page in page order, LZW with the
+/// horizontal predictor, PhotometricInterpretation MinIsBlack, one sample per pixel, unsigned,
+/// and the tags of `facts` on every page (what Autoscoper's `Volume::Volume` reads: page k is
+/// slice k, and every page the same size and depth).
+pub fn encode_tiff_stack(
+    width: u32,
+    height: u32,
+    depth: u32,
+    samples: &[u16],
+    facts: &TiffFacts,
+) -> Result<Vec<u8>, String> {
+    let page = width as usize * height as usize;
+    if depth == 0 || samples.len() as u64 != page as u64 * u64::from(depth) {
+        return Err(format!(
+            "TIFF volume is {width}×{height}×{depth} but {} samples were given",
+            samples.len()
+        ));
+    }
+    check(width, height, &samples[..page], facts)?;
+    let mut out = Cursor::new(Vec::with_capacity(samples.len() / 4 + 4096));
+    {
+        let mut encoder = TiffEncoder::new(&mut out)
+            .map_err(tiff_error)?
+            .with_compression(Compression::Lzw)
+            .with_predictor(Predictor::Horizontal);
+        for k in 0..depth as usize {
+            let mut image = encoder
+                .new_image::<Gray16>(width, height)
+                .map_err(tiff_error)?;
+            write_facts(image.encoder(), facts)?;
+            image
+                .write_data(&samples[k * page..(k + 1) * page])
+                .map_err(tiff_error)?;
+        }
+    }
+    Ok(out.into_inner())
+}
+
 /// The TIFF resolution of a pitch: pixels per centimetre, `10 / pitch_mm`, as a rational. The
 /// pitch's shortest decimal form (what the scenario wrote, e.g. `0.3` gives `100/3`) is used
 /// exactly when the reduced fraction fits 32 bits; otherwise the closest fraction with 32-bit

@@ -1,0 +1,621 @@
+//! The exports checked against the clients' own reading rules, each rule with the client's file
+//! and function it comes from (XMALab: `XROMMPackages/xmalab`; Autoscoper:
+//! `BrownBiomechanics/Autoscoper`, `libautoscoper/src/`). The rules are written out here from the
+//! clients' code, not taken from rsasim's writers; volume tags are read by libtiff's `tiffinfo`
+//! (the library Autoscoper reads volumes with), pixels by the `tiff` crate.
+
+use crate::common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::{ALLOW_MODELS, read_tiff, rsasim, truths};
+use rsasim::output::Truth;
+
+/// Runs `scenario` into a temporary folder and exports it for `to` with `extra` options.
+fn export(scenario: &str, to: &str, extra: &[&str]) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let o = rsasim(
+        &[
+            &[scenario, "--out", out.to_str().unwrap()],
+            &ALLOW_MODELS[..],
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dest = tmp.path().join(to);
+    let o = rsasim(
+        &[
+            &[
+                "export",
+                out.to_str().unwrap(),
+                "--to",
+                to,
+                "--dir",
+                dest.to_str().unwrap(),
+            ],
+            extra,
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (tmp, out, dest)
+}
+
+/// Numbers of a comma- or space-separated line.
+fn numbers(line: &str) -> Vec<f64> {
+    line.split([',', ' '])
+        .filter(|v| !v.trim().is_empty())
+        .map(|v| v.trim().parse().unwrap())
+        .collect()
+}
+
+/// A MayaCam 2.0 camera read by line number as Autoscoper's `Camera::loadMayaCam2` and XMALab's
+/// `ExternalCalibrationFrame` read it (line 2 the size, width first; 5–7 K; 10–12 R; 15–17 t).
+/// `single`: every value rounded to a 32-bit float first, as XMALab's `fscanf("%f")` does.
+struct MayaCam {
+    size: [f64; 2],
+    k: [[f64; 3]; 3],
+    r: [[f64; 3]; 3],
+    t: [f64; 3],
+}
+
+fn mayacam(file: &Path, single: bool) -> MayaCam {
+    let text = std::fs::read_to_string(file).unwrap();
+    let l: Vec<&str> = text.lines().collect();
+    let n = |line: usize| -> Vec<f64> {
+        numbers(l[line - 1])
+            .into_iter()
+            .map(|v| if single { f64::from(v as f32) } else { v })
+            .collect()
+    };
+    let m3 = |first: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(n(first + i)).unwrap());
+    let s = n(2);
+    MayaCam {
+        size: [s[0], s[1]],
+        k: m3(5),
+        r: m3(10),
+        t: [n(15)[0], n(16)[0], n(17)[0]],
+    }
+}
+
+impl MayaCam {
+    /// OpenCV pixel (0-based, origin top-left) of a world point.
+    fn project(&self, x: [f64; 3]) -> [f64; 2] {
+        let c: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| self.r[i][j] * x[j]).sum::<f64>() + self.t[i])
+            .collect();
+        let p: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|j| self.k[i][j] * c[j]).sum::<f64>())
+            .collect();
+        [p[0] / p[2], p[1] / p[2]]
+    }
+
+    /// Camera-frame depth of a world point, mm.
+    fn depth(&self, x: [f64; 3]) -> f64 {
+        (0..3).map(|j| self.r[2][j] * x[j]).sum::<f64>() + self.t[2]
+    }
+}
+
+/// The truth pixel `(u, v)` (rsasim's, pixel centres at i + 0.5) as an OpenCV pixel of the
+/// exported image, whose rows are flipped: x = u − 0.5, y = H − v − 0.5.
+fn opencv(uv: [f64; 2], h: f64) -> [f64; 2] {
+    [uv[0] - 0.5, h - uv[1] - 0.5]
+}
+
+/// The world (box-frame) centre of a bead of `truth`.
+fn bead_world(truth: &Truth, phantom: &str, id: &str) -> [f64; 3] {
+    truth
+        .run
+        .phantoms
+        .iter()
+        .find(|p| p.id == phantom)
+        .unwrap()
+        .markers
+        .iter()
+        .find(|b| b.id == id)
+        .unwrap()
+        .position_mm
+        .to_array()
+}
+
+/// A `.cfg` as Autoscoper's `Trial::parse` splits it: `#` lines skipped, the key up to the first
+/// space, the value the rest of the line.
+fn cfg_entries(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let (k, v) = l.split_once(' ').unwrap_or((l, ""));
+            (k.to_string(), v.to_string())
+        })
+        .collect()
+}
+
+fn values<'a>(entries: &'a [(String, String)], key: &str) -> Vec<&'a str> {
+    entries
+        .iter()
+        .filter(|(k, _)| k == key)
+        .map(|(_, v)| v.as_str())
+        .collect()
+}
+
+fn have_tiffinfo() -> bool {
+    let ok = Command::new("tiffinfo").output().is_ok();
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "tiffinfo is missing (apt-get install libtiff-tools); CI must run this test"
+        );
+        eprintln!("SKIPPED the libtiff checks (needs tiffinfo: apt-get install libtiff-tools)");
+    }
+    ok
+}
+
+/// Every page of a multi-page 16-bit TIFF, decoded.
+fn read_pages(path: &Path) -> (u32, u32, Vec<Vec<u16>>) {
+    let mut dec =
+        tiff::decoder::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()))
+            .unwrap();
+    let (w, h) = dec.dimensions().unwrap();
+    let mut pages = Vec::new();
+    loop {
+        assert_eq!(
+            dec.dimensions().unwrap(),
+            (w, h),
+            "non uniform volume slices"
+        );
+        match dec.read_image().unwrap() {
+            tiff::decoder::DecodingResult::U16(v) => pages.push(v),
+            _ => panic!("{} is not 16-bit", path.display()),
+        }
+        if !dec.more_images() {
+            break;
+        }
+        dec.next_image().unwrap();
+    }
+    (w, h, pages)
+}
+
+/// Volume and centroid of a closed triangle mesh (divergence theorem), mm³ and mm.
+fn solid_centroid(vertices: &[[f64; 3]], triangles: &[[usize; 3]]) -> (f64, [f64; 3]) {
+    let mut v6 = 0.0;
+    let mut c = [0.0; 3];
+    for t in triangles {
+        let [a, b, d] = t.map(|i| vertices[i]);
+        let det = a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0])
+            + a[2] * (b[0] * d[1] - b[1] * d[0]);
+        v6 += det;
+        for k in 0..3 {
+            c[k] += det * (a[k] + b[k] + d[k]) / 4.0;
+        }
+    }
+    (v6 / 6.0, c.map(|x| x / v6))
+}
+
+/// A binary STL's triangles (vertices not shared).
+fn read_stl(path: &Path) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+    let bytes = std::fs::read(path).unwrap();
+    let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize;
+    let mut v = Vec::with_capacity(3 * n);
+    for f in 0..n {
+        let at = 84 + 50 * f + 12;
+        for k in 0..3 {
+            let p = at + 12 * k;
+            let x = |o: usize| {
+                f64::from(f32::from_le_bytes(
+                    bytes[p + o..p + o + 4].try_into().unwrap(),
+                ))
+            };
+            v.push([x(0), x(4), x(8)]);
+        }
+    }
+    let t = (0..n).map(|f| [3 * f, 3 * f + 1, 3 * f + 2]).collect();
+    (v, t)
+}
+
+fn apply(m: &[f64], p: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|i| m[4 * i] * p[0] + m[4 * i + 1] * p[1] + m[4 * i + 2] * p[2] + m[4 * i + 3])
+}
+
+#[test]
+fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in_place() {
+    let (_tmp, out, dest) = export("scenarios/golden/small_biplanar.toml", "autoscoper", &[]);
+    let mut trials = 0;
+    let mut worst_px: f64 = 0.0;
+    for (_, truth) in truths(&out) {
+        let run = dest.join(&truth.run.id);
+        for exposure in &truth.run.exposures {
+            let cfg_path = run.join(format!("{}.cfg", exposure.id));
+            if !cfg_path.exists() {
+                // Only exposures with a model get a trial: Autoscoper needs a volume.
+                assert!(!exposure.phantoms.iter().any(|p| p == "femur"));
+                continue;
+            }
+            trials += 1;
+            let text = std::fs::read_to_string(&cfg_path).unwrap();
+            let e = cfg_entries(&text);
+            // Trial::validate: ≥ 1 camera, as many CameraRootDir, ≥ 1 VolumeFile, as many
+            // VoxelSize, MeshFile 0 or as many as the volumes.
+            let cams = values(&e, "mayaCam_csv");
+            let dirs = values(&e, "CameraRootDir");
+            let vols = values(&e, "VolumeFile");
+            let sizes = values(&e, "VoxelSize");
+            let flips = values(&e, "VolumeFlip");
+            let meshes = values(&e, "MeshFile");
+            assert!(!cams.is_empty() && cams.len() == dirs.len());
+            assert!(!vols.is_empty() && sizes.len() == vols.len());
+            assert!(meshes.is_empty() || meshes.len() == vols.len());
+            assert_eq!(values(&e, "Version"), ["1.2"]);
+            // Version ≥ 1.1: paths relative to the cfg's folder, no leading '/', '/' separators.
+            for p in cams.iter().chain(&dirs).chain(&vols).chain(&meshes) {
+                assert!(!p.starts_with('/') && !p.contains('\\'), "{p}");
+                assert!(run.join(p).exists(), "{p} of {}", cfg_path.display());
+            }
+            // Camera folders: files whose extension starts with "tif", sorted by name.
+            for d in &dirs {
+                let tifs = std::fs::read_dir(run.join(d))
+                    .unwrap()
+                    .filter(|f| {
+                        let p = f.as_ref().unwrap().path();
+                        p.extension()
+                            .is_some_and(|x| x.to_string_lossy().starts_with("tif"))
+                    })
+                    .count();
+                assert!(tifs >= 1, "{d}");
+            }
+            // Cameras read as Autoscoper reads them, in the cfg's order: the detectors'.
+            let cameras: Vec<MayaCam> = cams.iter().map(|c| mayacam(&run.join(c), false)).collect();
+            // Each volume with its flip, voxel size, truth pose and the offset the cfg states.
+            for (i, vol) in vols.iter().enumerate() {
+                let phantom = Path::new(vol)
+                    .file_stem()
+                    .unwrap()
+                    .to_string_lossy()
+                    .to_string();
+                let s = numbers(sizes[i]);
+                assert_eq!(s.len(), 3);
+                let flip = numbers(flips[i]);
+                let offset: Vec<f64> = text
+                    .lines()
+                    .find_map(|l| l.strip_prefix(&format!("#   {phantom}: offset ")))
+                    .map(numbers)
+                    .unwrap();
+                let tra = std::fs::read_to_string(
+                    run.join(format!("truth/{}_{phantom}.tra", exposure.id)),
+                )
+                .unwrap();
+                let lines: Vec<&str> = tra.lines().collect();
+                assert_eq!(lines.len(), 1, "one frame");
+                let m = numbers(lines[0]);
+                assert_eq!(m.len(), 16);
+                assert_eq!(&m[12..], &[0.0, 0.0, 0.0, 1.0]);
+                // Beads of the phantom: local (truth pose) → volume frame (minus the offset) →
+                // the .tra → every camera: on the truth pixel.
+                let ph = truth.run.phantoms.iter().find(|p| p.id == phantom).unwrap();
+                for image in truth.images.iter().filter(|im| im.exposure == exposure.id) {
+                    let d = truth
+                        .run
+                        .detectors
+                        .iter()
+                        .position(|x| x.id == image.detector)
+                        .unwrap();
+                    for mk in image
+                        .markers
+                        .iter()
+                        .filter(|m| m.phantom == phantom && m.inside)
+                    {
+                        let local = ph.pose().to_local(glam::DVec3::from_array(bead_world(
+                            &truth, &phantom, &mk.id,
+                        )));
+                        let vol_p = [
+                            local.x - offset[0],
+                            local.y - offset[1],
+                            local.z - offset[2],
+                        ];
+                        let world = apply(&m, vol_p);
+                        let got = cameras[d].project(world);
+                        let want = opencv(mk.pixel, cameras[d].size[1]);
+                        worst_px = worst_px.max((got[0] - want[0]).hypot(got[1] - want[1]));
+                    }
+                }
+                // The volume where Autoscoper puts it: voxel (c, r, p) at
+                // (sx·(c′+½), sy·(H−½−r′), −sz·(p′+½)), c′ = fx ? W−1−c : c, …
+                // (VolumeDescription::VolumeDescription, RayCaster::setInvModelView), then the
+                // .tra; the centroid of the inside voxels against the posed mesh's solid centroid.
+                let (w, h, pages) = read_pages(&run.join(vol));
+                let dpages = pages.len();
+                let mut sum = [0.0; 3];
+                let mut count = 0usize;
+                for (p, page) in pages.iter().enumerate() {
+                    for r in 0..h as usize {
+                        for c in 0..w as usize {
+                            if page[r * w as usize + c] == 0 {
+                                continue;
+                            }
+                            let cf = if flip[0] != 0.0 {
+                                w as usize - 1 - c
+                            } else {
+                                c
+                            } as f64;
+                            let rf = if flip[1] != 0.0 {
+                                h as usize - 1 - r
+                            } else {
+                                r
+                            } as f64;
+                            let pf = if flip[2] != 0.0 { dpages - 1 - p } else { p } as f64;
+                            let v = [
+                                s[0] * (cf + 0.5),
+                                s[1] * (f64::from(h) - 0.5 - rf),
+                                -s[2] * (pf + 0.5),
+                            ];
+                            let x = apply(&m, v);
+                            for k in 0..3 {
+                                sum[k] += x[k];
+                            }
+                            count += 1;
+                        }
+                    }
+                }
+                assert!(count > 0, "an empty volume makes Autoscoper exit");
+                let voxel_centroid = sum.map(|x| x / count as f64);
+                // The model in its own frame, as the export also writes it (models/).
+                let (verts, tris) = read_stl(&run.join(format!("models/{phantom}.stl")));
+                let (volume_mm3, c_local) = solid_centroid(&verts, &tris);
+                let c_world = ph.pose().to_world(glam::DVec3::from_array(c_local));
+                let off = (glam::DVec3::from_array(voxel_centroid) - c_world).length();
+                eprintln!(
+                    "{} {phantom}: {count} voxels ({:.0} mm³ against the mesh's {volume_mm3:.0}), centroid {off:.4} mm from the posed mesh's",
+                    truth.run.id,
+                    count as f64 * s[0] * s[1] * s[2]
+                );
+                // Voxelization moves the centroid by a discretization error (measured 0.074 mm at
+                // 0.5 mm voxels, 0.014 mm at 0.25 mm, 0.14 mm at 1 mm); a frame off by half a
+                // voxel along any axis would move it by 0.25 mm.
+                assert!(off < 0.25 * s[0], "voxel centroid {off} mm from the mesh's");
+                let rel = (count as f64 * s[0] * s[1] * s[2] - volume_mm3).abs() / volume_mm3;
+                assert!(rel < 0.03, "voxel volume off by {rel}");
+                // The mesh Autoscoper pairs with the volume, moved by the same .tra: the posed
+                // mesh (f32 vertices: within 1e-3 mm).
+                let (mv, mt) = read_stl(&run.join(meshes[i]));
+                let (_, c_vol) = solid_centroid(&mv, &mt);
+                let moved = glam::DVec3::from_array(apply(&m, c_vol));
+                assert!((moved - c_world).length() < 1e-3, "{moved} {c_world}");
+            }
+        }
+    }
+    eprintln!("{trials} trials; worst bead reprojection through the .tra {worst_px:e} px");
+    assert!(trials >= 4);
+    assert!(worst_px <= 1e-6, "{worst_px} px");
+    // libtiff (Autoscoper's reader) on the volume: one sample, 16 bits, unsigned, MinIsBlack,
+    // contiguous, a compression libtiff decodes (Volume::Volume, tiffImageRead).
+    if have_tiffinfo() {
+        let o = Command::new("tiffinfo")
+            .arg(dest.join("volumes/femur.tif"))
+            .output()
+            .unwrap();
+        let info = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{info}");
+        let dirs = info.matches("TIFF Directory at offset").count();
+        assert!(dirs > 10, "{dirs} pages");
+        for (needle, n) in [
+            ("Bits/Sample: 16", dirs),
+            ("Samples/Pixel: 1", dirs),
+            ("Sample Format: unsigned integer", dirs),
+            ("Photometric Interpretation: min-is-black", dirs),
+            ("Planar Configuration: single image plane", dirs),
+            ("Compression Scheme: LZW", dirs),
+        ] {
+            assert_eq!(info.matches(needle).count(), n, "{needle}\n{info}");
+        }
+    }
+}
+
+/// The bead at a truth pixel in an exported (flipped, 16-bit) image, against the image's median.
+fn bead_against_background(dest: &Path, truth: &Truth) -> (u16, u16) {
+    let image = truth
+        .images
+        .iter()
+        .find(|im| im.exposure == "calibration")
+        .unwrap();
+    let stem = format!("{}-{}", image.exposure, image.detector);
+    let (w, h, px) = read_tiff(
+        &dest
+            .join(&truth.run.id)
+            .join(format!("images/{stem}/{stem}.0001.tif")),
+    );
+    let mk = image.markers.iter().find(|m| m.inside).unwrap();
+    // Row v of rsasim's image is row H − 1 − v of the export.
+    let (i, j) = (mk.pixel[0] as usize, h as usize - 1 - mk.pixel[1] as usize);
+    let mut sorted = px.clone();
+    sorted.sort_unstable();
+    (px[j * w as usize + i], sorted[sorted.len() / 2])
+}
+
+#[test]
+fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() {
+    let (_tmp, out, dest) = export("tests/scenarios/xmalab_cube.toml", "xmalab", &[]);
+    for (_, truth) in truths(&out) {
+        let cal = dest.join(&truth.run.id).join("calibration");
+        let spec = std::fs::read_to_string(cal.join("frame_specification.csv")).unwrap();
+        let mut lines = spec.lines();
+        // CalibrationObject::loadCoords: a header line; "white" in it switches to white blobs.
+        assert!(!lines.next().unwrap().contains("white"));
+        // Then `x,y,z` per bead, read as numbers separated by commas.
+        let beads: Vec<[f64; 3]> = lines
+            .map(|l| <[f64; 3]>::try_from(numbers(l)).unwrap())
+            .collect();
+        assert_eq!(beads.len(), truth.run.phantoms[0].markers.len());
+        // The references (`%i %20[0-9a-zA-Z ]s`, 1-based), in a `.ref` file (the dialog's filter).
+        let refs = std::fs::read_to_string(cal.join("references.ref")).unwrap();
+        let chosen: Vec<usize> = refs
+            .lines()
+            .map(|l| {
+                let (i, name) = l.split_once(' ').unwrap();
+                assert!(
+                    !name.is_empty()
+                        && name.len() <= 20
+                        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == ' '),
+                    "{l}"
+                );
+                i.parse::<usize>().unwrap() - 1
+            })
+            .collect();
+        assert_eq!(chosen.len(), 4);
+        assert!(chosen.iter().all(|&i| i < beads.len()));
+        // Not coplanar: the tetrahedron holds at least 5 % of the beads' bounding box.
+        let p: Vec<[f64; 3]> = chosen.iter().map(|&i| beads[i]).collect();
+        let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let (u, v, w) = (d(p[0], p[1]), d(p[0], p[2]), d(p[0], p[3]));
+        let vol = (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+            + u[2] * (v[0] * w[1] - v[1] * w[0]))
+            .abs()
+            / 6.0;
+        let ext: Vec<f64> = (0..3)
+            .map(|k| {
+                let (lo, hi) = beads.iter().fold((f64::MAX, f64::MIN), |(lo, hi), b| {
+                    (lo.min(b[k]), hi.max(b[k]))
+                });
+                hi - lo
+            })
+            .collect();
+        assert!(vol >= 0.05 * ext[0] * ext[1] * ext[2], "{vol}");
+        // In every view, through the cameras as XMALab reads them (32-bit floats): each
+        // reference on the image and at least 3 bead diameters from every other bead's image.
+        for det in &truth.run.detectors {
+            let cam = mayacam(&cal.join(format!("{}_MayaCam.txt", det.id)), true);
+            let bead_mm = truth.run.phantoms[0].markers[0].diameter_mm;
+            let diameter_px = |x: [f64; 3]| cam.k[0][0] * bead_mm / cam.depth(x);
+            for &r in &chosen {
+                let c = cam.project(beads[r]);
+                let own = diameter_px(beads[r]);
+                assert!(c[0] > 0.0 && c[1] > 0.0 && c[0] < cam.size[0] && c[1] < cam.size[1]);
+                for (o, b) in beads.iter().enumerate().filter(|(o, _)| *o != r) {
+                    let q = cam.project(*b);
+                    let apart = (q[0] - c[0]).hypot(q[1] - c[1]);
+                    assert!(
+                        apart >= 3.0 * own.max(diameter_px(*b)) * (1.0 - 1e-6),
+                        "{}: reference {r} {apart} px from bead {o}",
+                        det.id
+                    );
+                }
+            }
+        }
+        // Beads dark on the exported images (binary mode has them bright).
+        let (bead, background) = bead_against_background(&dest, &truth);
+        assert!(bead < background, "bead {bead}, background {background}");
+    }
+    // --dense-matter bright: bright beads, and the header says "white".
+    let (_tmp2, out2, dest2) = export(
+        "tests/scenarios/xmalab_cube.toml",
+        "xmalab",
+        &["--dense-matter", "bright"],
+    );
+    let (_, truth) = truths(&out2).remove(0);
+    let spec = std::fs::read_to_string(
+        dest2
+            .join(&truth.run.id)
+            .join("calibration/frame_specification.csv"),
+    )
+    .unwrap();
+    assert!(spec.lines().next().unwrap().contains("white"));
+    let (bead, background) = bead_against_background(&dest2, &truth);
+    assert!(bead > background, "bead {bead}, background {background}");
+}
+
+#[test]
+fn a_box_with_no_four_references_is_named_and_required_makes_it_an_error() {
+    // The paper's cube seen square-on: every plate is edge-on in one of the two views.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    common::run_scenario("scenarios/golden/small_biplanar.toml", &out, &[]);
+    let dest = tmp.path().join("x");
+    let args = |extra: &'static str| {
+        vec![
+            "export".to_string(),
+            out.to_string_lossy().to_string(),
+            "--to".into(),
+            "xmalab".into(),
+            "--dir".into(),
+            dest.to_string_lossy().to_string(),
+            "--calibration-object".into(),
+            extra.into(),
+        ]
+    };
+    let run = |a: Vec<String>| rsasim(&a.iter().map(String::as_str).collect::<Vec<_>>(), &[]);
+    let o = run(args("required"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("truth.json") && err.contains("no four reference beads"),
+        "{err}"
+    );
+    assert!(!dest.exists(), "nothing written");
+    let o = run(args("when-possible"));
+    assert!(o.status.success());
+    let note = String::from_utf8_lossy(&o.stderr);
+    assert!(note.contains("not written for 4 of 4 run(s)"), "{note}");
+    assert!(!dest.join("n0-r00/calibration/references.ref").exists());
+    assert!(dest.join("n0-r00/calibration/det1_MayaCam.txt").exists());
+}
+
+#[test]
+fn xmalab_reads_the_cameras_as_32_bit_floats_within_1e_4_px_at_1440() {
+    // The paper's geometry at 1440², one run.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let o = rsasim(
+        &[
+            "scenarios/biplanar.toml",
+            "--shard",
+            "0/100",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let shard = out.join("shard-00-of-100");
+    let dest = tmp.path().join("x");
+    let o = rsasim(
+        &[
+            "export",
+            shard.to_str().unwrap(),
+            "--to",
+            "xmalab",
+            "--dir",
+            dest.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (_, truth) = truths(&shard).remove(0);
+    let mut worst: f64 = 0.0;
+    let mut n = 0;
+    for image in &truth.images {
+        let det = truth
+            .run
+            .detectors
+            .iter()
+            .find(|d| d.id == image.detector)
+            .unwrap();
+        assert_eq!(det.pixels, [1440, 1440]);
+        let cam = mayacam(
+            &dest
+                .join(&truth.run.id)
+                .join(format!("calibration/{}_MayaCam.txt", det.id)),
+            true,
+        );
+        for mk in image.markers.iter().filter(|m| m.inside) {
+            let got = cam.project(bead_world(&truth, &mk.phantom, &mk.id));
+            let want = opencv(mk.pixel, 1440.0);
+            worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
+            n += 1;
+        }
+    }
+    eprintln!("{n} bead images through 32-bit cameras: worst {worst:e} px");
+    assert!(n > 200);
+    assert!(worst <= 1e-4, "{worst} px");
+}
