@@ -210,8 +210,7 @@ impl CornerBeamline {
             return Err(refuse(
                 "--source-mm",
                 format!(
-                    "the source lies {:.3} mm behind the image as its corners order it (the camera looks along (corner 2 − corner 1) × (corner 4 − corner 1))",
-                    -distance
+                    "the source lies {distance:.3} mm in front of the image plane as the corners order the image (the camera looks along (corner 2 − corner 1) × (corner 4 − corner 1)); it must lie in front, more than 0 mm"
                 ),
                 "the corners of an image seen from the source run clockwise 1 → 2 → 3 → 4; if the image is the mirror image of that view, flip its rows and give the corners in the order 4, 3, 2, 1",
             ));
