@@ -282,6 +282,21 @@ pub struct EvaluateArgs {
     /// the folder `rsasim export` wrote, where XMALab's exports were saved.
     #[arg(long, value_name = "DIR", requires = "measured")]
     pub results_in: Option<PathBuf>,
+    /// XMALab's 2D points: the y axis they were exported with, `down` (XMALab's default) or
+    /// `up` (its "y axis up (Matlab)" option: y counted from the bottom row). The file does
+    /// not say it.
+    #[arg(
+        long,
+        value_name = "DIRECTION",
+        default_value = "down",
+        requires = "measured"
+    )]
+    pub xmalab_2d_y_axis: XmalabYAxis,
+    /// XMALab's 2D points: the number of the first pixel they were exported with, 0
+    /// (XMALab's default) or 1 (its "start coordinates at 1 (Matlab)" option). The file does
+    /// not say it.
+    #[arg(long, value_name = "N", default_value = "0", requires = "measured")]
+    pub xmalab_2d_start_at: XmalabFirstPixel,
     /// Read every run's results from one CSV long table instead (columns in the README).
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
@@ -547,6 +562,8 @@ impl EvaluateArgs {
             migration_csv: None,
             stability_threshold_mm: rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM,
             limits_99: false,
+            xmalab_2d_y_axis: XmalabYAxis::Down,
+            xmalab_2d_start_at: XmalabFirstPixel::Zero,
         }
     }
 }
@@ -668,6 +685,42 @@ impl From<ExportTarget> for rsasim::interop::export::Target {
         match t {
             ExportTarget::Xmalab => Self::Xmalab,
             ExportTarget::Autoscoper => Self::Autoscoper,
+        }
+    }
+}
+
+/// `evaluate --xmalab-2d-y-axis`: the y axis of XMALab's 2-D point export
+/// ([`rsasim::interop::xmalab_points2d::YAxis`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum XmalabYAxis {
+    Down,
+    Up,
+}
+
+impl From<XmalabYAxis> for rsasim::interop::xmalab_points2d::YAxis {
+    fn from(y: XmalabYAxis) -> Self {
+        match y {
+            XmalabYAxis::Down => Self::Down,
+            XmalabYAxis::Up => Self::Up,
+        }
+    }
+}
+
+/// `evaluate --xmalab-2d-start-at`: the first pixel's number in XMALab's 2-D point export
+/// ([`rsasim::interop::xmalab_points2d::FirstPixel`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum XmalabFirstPixel {
+    #[value(name = "0")]
+    Zero,
+    #[value(name = "1")]
+    One,
+}
+
+impl From<XmalabFirstPixel> for rsasim::interop::xmalab_points2d::FirstPixel {
+    fn from(f: XmalabFirstPixel) -> Self {
+        match f {
+            XmalabFirstPixel::Zero => Self::Zero,
+            XmalabFirstPixel::One => Self::One,
         }
     }
 }

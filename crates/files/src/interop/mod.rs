@@ -12,3 +12,4 @@ pub mod detector_corners;
 pub mod export;
 pub mod mesh_text;
 pub mod xmalab;
+pub mod xmalab_points2d;
