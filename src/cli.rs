@@ -141,6 +141,15 @@ pub enum Command {
     /// meshes (OBJ for XMALab, STL for Autoscoper). DEST must be a new folder; it is written
     /// completely or not at all, and never inside OUT.
     Export(ExportArgs),
+    /// Write the pinhole camera of a beamline in three forms: MayaCam 2.0 (XMALab, Autoscoper),
+    /// DLT-11 (XMALab's and DLTdv's convention: 1-based pixels, origin bottom-left) and OpenCV
+    /// K, R, t as JSON (`image_size_px`, `K`, `R`, `t_mm`: pixels 0-based from the top-left).
+    /// The beamline is a source and the four outer corners of the image (`--source-mm`,
+    /// `--corners-mm`, `--pixels`), every detector of a scenario's nominal set-up, or every
+    /// detector of one run of an output folder (`OUT --run ID`, from its verified truth). Every
+    /// form describes the image flipped top to bottom against rsasim's, as `rsasim export`
+    /// writes it. Printed, or written into a new folder with --dir.
+    Camera(CameraArgs),
     /// Join the shard folders of one scenario (written by `rsasim SCENARIO --shard K/N`) into
     /// one output folder, byte for byte the folder a run without --shard writes. Every shard is
     /// checked first: its manifest's own hash, the same scenario, seed, build and number of
@@ -273,6 +282,21 @@ pub struct EvaluateArgs {
     /// the folder `rsasim export` wrote, where XMALab's exports were saved.
     #[arg(long, value_name = "DIR", requires = "measured")]
     pub results_in: Option<PathBuf>,
+    /// XMALab's 2D points: the y axis they were exported with, `down` (XMALab's default) or
+    /// `up` (its "y axis up (Matlab)" option: y counted from the bottom row). The file does
+    /// not say it.
+    #[arg(
+        long,
+        value_name = "DIRECTION",
+        default_value = "down",
+        requires = "measured"
+    )]
+    pub xmalab_2d_y_axis: XmalabYAxis,
+    /// XMALab's 2D points: the number of the first pixel they were exported with, 0
+    /// (XMALab's default) or 1 (its "start coordinates at 1 (Matlab)" option). The file does
+    /// not say it.
+    #[arg(long, value_name = "N", default_value = "0", requires = "measured")]
+    pub xmalab_2d_start_at: XmalabFirstPixel,
     /// Read every run's results from one CSV long table instead (columns in the README).
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
@@ -410,6 +434,48 @@ pub struct ExportArgs {
     pub calibration_from: Option<String>,
 }
 
+/// Arguments of `rsasim camera`.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("beamline").required(true).args(["input", "source_mm"])))]
+pub struct CameraArgs {
+    /// A scenario file (the cameras of its nominal set-up, no random draw), or an output folder
+    /// with --run (the cameras of that run's truth).
+    #[arg(value_name = "SCENARIO|OUT", conflicts_with_all = ["source_mm", "corners_mm", "pixels", "detector"])]
+    pub input: Option<PathBuf>,
+    /// The run of the output folder OUT whose true cameras are written, e.g. n0-r00.
+    #[arg(long, value_name = "RUN_ID", requires = "input")]
+    pub run: Option<String>,
+    /// The focus position X,Y,Z, mm.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, requires_all = ["corners_mm", "pixels"])]
+    pub source_mm: Option<String>,
+    /// The four outer corners of the image, mm, in this order: the top-left corner of row 0
+    /// (the outer corner of the first pixel), the end of row 0, the end of the last row, the
+    /// start of the last row. Row 0 is the top row of the image as the camera sees it from the
+    /// source; the corners must form a rectangle (within 1e-6 of its diagonal).
+    #[arg(
+        long,
+        value_name = "x,y,z;x,y,z;x,y,z;x,y,z",
+        allow_hyphen_values = true,
+        requires = "source_mm"
+    )]
+    pub corners_mm: Option<String>,
+    /// The image's columns and rows, W,H; the pixel pitch is each side's length over its count.
+    #[arg(long, value_name = "W,H", requires = "source_mm")]
+    pub pixels: Option<String>,
+    /// The camera's name, for its files with --dir. Default: det1.
+    #[arg(long, value_name = "ID", requires = "source_mm")]
+    pub detector: Option<String>,
+    /// Write a new folder DEST with <detector>_MayaCam.txt and <detector>_opencv.json per
+    /// camera and dlt11.csv (11 rows, one column per camera), instead of printing them. It is
+    /// written completely or not at all; an existing folder is refused.
+    #[arg(long, value_name = "DEST")]
+    pub dir: Option<PathBuf>,
+    /// A folder, besides the scenario file's own, that its mesh files may be read from
+    /// (repeatable).
+    #[arg(long = "allow-dir", value_name = "DIR")]
+    pub allow_dir: Vec<PathBuf>,
+}
+
 /// Arguments of `rsasim merge`.
 #[derive(Debug, Args)]
 pub struct MergeArgs {
@@ -509,6 +575,8 @@ impl EvaluateArgs {
             migration_csv: None,
             stability_threshold_mm: rsasim::migration::DEFAULT_STABILITY_THRESHOLD_MM,
             limits_99: false,
+            xmalab_2d_y_axis: XmalabYAxis::Down,
+            xmalab_2d_start_at: XmalabFirstPixel::Zero,
         }
     }
 }
@@ -670,6 +738,42 @@ impl From<ExportTarget> for rsasim::interop::export::Target {
         match t {
             ExportTarget::Xmalab => Self::Xmalab,
             ExportTarget::Autoscoper => Self::Autoscoper,
+        }
+    }
+}
+
+/// `evaluate --xmalab-2d-y-axis`: the y axis of XMALab's 2-D point export
+/// ([`rsasim::interop::xmalab_points2d::YAxis`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum XmalabYAxis {
+    Down,
+    Up,
+}
+
+impl From<XmalabYAxis> for rsasim::interop::xmalab_points2d::YAxis {
+    fn from(y: XmalabYAxis) -> Self {
+        match y {
+            XmalabYAxis::Down => Self::Down,
+            XmalabYAxis::Up => Self::Up,
+        }
+    }
+}
+
+/// `evaluate --xmalab-2d-start-at`: the first pixel's number in XMALab's 2-D point export
+/// ([`rsasim::interop::xmalab_points2d::FirstPixel`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum XmalabFirstPixel {
+    #[value(name = "0")]
+    Zero,
+    #[value(name = "1")]
+    One,
+}
+
+impl From<XmalabFirstPixel> for rsasim::interop::xmalab_points2d::FirstPixel {
+    fn from(f: XmalabFirstPixel) -> Self {
+        match f {
+            XmalabFirstPixel::Zero => Self::Zero,
+            XmalabFirstPixel::One => Self::One,
         }
     }
 }

@@ -12,8 +12,8 @@ use clap::Parser;
 
 use cli::{Cli, Command};
 use commands::{
-    evaluate, expand, export, material, merge, reconstruct, run, scene, schema, spectrum, sweep,
-    validate, verify,
+    camera, evaluate, expand, export, material, merge, reconstruct, run, scene, schema, spectrum,
+    sweep, validate, verify,
 };
 
 fn main() -> ExitCode {
@@ -26,6 +26,7 @@ fn main() -> ExitCode {
         Some(Command::Reconstruct(args)) => reconstruct::execute(args),
         Some(Command::Sweep(args)) => sweep::execute(args),
         Some(Command::Export(args)) => export::execute(args),
+        Some(Command::Camera(args)) => camera::execute(args),
         Some(Command::Evaluate(args)) => evaluate::execute(args),
         Some(Command::Verify(args)) => verify::execute(args),
         Some(Command::Merge(args)) => merge::execute(args),

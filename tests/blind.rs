@@ -41,6 +41,7 @@ fn options() -> Options {
         },
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         study: Default::default(),
+        xmalab_2d: Default::default(),
     }
 }
 

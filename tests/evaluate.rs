@@ -124,6 +124,7 @@ fn options() -> Options {
         confidence: Confidence::default(),
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         study: Default::default(),
+        xmalab_2d: Default::default(),
     }
 }
 

@@ -289,6 +289,26 @@ fn simulated_with_results_folder() -> (tempfile::TempDir, PathBuf, PathBuf) {
 /// A 2-D point export of XMALab (0-based pixels, y down, of the exported flipped images) for
 /// every bead of `femur` moved by [`OFFSET`], projected by rsasim's own detector frames.
 fn points2d_csv(truth: &Truth) -> String {
+    points2d_csv_as(truth, &Export2d::default())
+}
+
+/// The options of XMALab's 2-D point export dialog.
+#[derive(Default)]
+struct Export2d {
+    /// "y axis up (Matlab)".
+    y_up: bool,
+    /// "start coordinates at 1 (Matlab)".
+    start_at_one: bool,
+    /// "cam offset columns": `Some(separator)` between the header's offset names and before
+    /// the first marker's column (XMALab writes none: `Some("")`).
+    offset_columns: Option<&'static str>,
+}
+
+/// [`points2d_csv`] as XMALab writes it with `options`, by the rules of its
+/// `Trial::save2dPoints` (src/core/Trial.cpp, XMALab 2.2.7): y up writes `H − y − 1`, then
+/// start at 1 adds 1 to x and y; offset columns write `cam<j>_offset` (j from 0) with no comma
+/// between them nor before the first marker, and `0,` per camera at the start of every row.
+fn points2d_csv_as(truth: &Truth, options: &Export2d) -> String {
     let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
     let mut header = Vec::new();
     let mut values = Vec::new();
@@ -301,10 +321,64 @@ fn points2d_csv(truth: &Truth) -> String {
                 .project(truth.run.source_of(det), moved)
                 .unwrap();
             let h = f64::from(det.pixels[1]);
-            values.push(format!("{},{}", num(uv.x - 0.5), num(h - uv.y - 0.5)));
+            let (mut x, mut y) = (uv.x - 0.5, h - uv.y - 0.5);
+            if options.y_up {
+                y = h - y - 1.0;
+            }
+            if options.start_at_one {
+                x += 1.0;
+                y += 1.0;
+            }
+            values.push(format!("{},{}", num(x), num(y)));
         }
     }
-    format!("{}\n{}\n", header.join(","), values.join(","))
+    let (mut head, mut row) = (String::new(), String::new());
+    if let Some(separator) = options.offset_columns {
+        for j in 0..truth.run.detectors.len() {
+            head += &format!("cam{j}_offset{separator}");
+            row += "0,";
+        }
+    }
+    format!("{head}{}\n{row}{}\n", header.join(","), values.join(","))
+}
+
+/// Asserts the femur's trueness is [`OFFSET`] at both levels, with no rotation.
+fn assert_offset_residuals(report: &Report, name: &str) {
+    assert_eq!(report.runs_scored, 40, "{name}");
+    let femur = table(report, "phantom-femur");
+    for level in 0..2 {
+        for (i, axis) in ["x", "y", "z"].iter().enumerate() {
+            let t = trueness(femur, level, "position", axis);
+            assert!((t - OFFSET[i]).abs() < 1e-7, "{name} {axis}: {t}");
+        }
+        for angle in ["α", "β", "γ"] {
+            let t = trueness(femur, level, "orientation", angle);
+            assert!(t.abs() < 1e-7, "{name} {angle}: {t}");
+        }
+    }
+}
+
+/// Scores the XMALab file `name` of every run in `dest` with the 2-D options `xmalab_2d`.
+fn evaluate_xmalab(
+    out: &Path,
+    dest: &Path,
+    name: &str,
+    xmalab_2d: rsasim::interop::xmalab_points2d::PixelOptions,
+) -> Report {
+    evaluate(
+        out,
+        &Options {
+            measured: MeasuredSource::PerRunIn {
+                name: name.into(),
+                dir: dest.to_path_buf(),
+            },
+            confidence: Confidence::default(),
+            mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+            study: Default::default(),
+            xmalab_2d,
+        },
+    )
+    .unwrap_or_else(|e| panic!("{name}: {e:?}"))
 }
 
 #[test]
@@ -321,31 +395,8 @@ fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
         for (_, truth) in truths(&out) {
             std::fs::write(dest.join(&truth.run.id).join(name), make(&truth)).unwrap();
         }
-        let report = evaluate(
-            &out,
-            &Options {
-                measured: MeasuredSource::PerRunIn {
-                    name: name.into(),
-                    dir: dest.clone(),
-                },
-                confidence: Confidence::default(),
-                mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
-                study: Default::default(),
-            },
-        )
-        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
-        assert_eq!(report.runs_scored, 40, "{name}");
-        let femur = table(&report, "phantom-femur");
-        for level in 0..2 {
-            for (i, axis) in ["x", "y", "z"].iter().enumerate() {
-                let t = trueness(femur, level, "position", axis);
-                assert!((t - OFFSET[i]).abs() < 1e-7, "{name} {axis}: {t}");
-            }
-            for angle in ["α", "β", "γ"] {
-                let t = trueness(femur, level, "orientation", angle);
-                assert!(t.abs() < 1e-7, "{name} {angle}: {t}");
-            }
-        }
+        let report = evaluate_xmalab(&out, &dest, name, Default::default());
+        assert_offset_residuals(&report, name);
     }
     // The command line: the same file names found under --results-in.
     let o = rsasim(
@@ -363,6 +414,99 @@ fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("report-xmalab-points/report.csv").is_file());
+}
+
+/// Every option of XMALab's 2-D point export, alone and combined, with the y axis and first
+/// pixel stated on the command line (the file does not say them), gives the same residuals.
+#[test]
+fn every_variant_of_xmalab_2d_points_gives_the_residuals_put_into_them() {
+    use rsasim::interop::xmalab_points2d::{FirstPixel, PixelOptions, YAxis};
+    let (_tmp, out, dest) = simulated_with_results_folder();
+    let variant = |y_up, start_at_one, offset_columns| Export2d {
+        y_up,
+        start_at_one,
+        offset_columns,
+    };
+    let variants = [
+        ("offsets", variant(false, false, Some(""))),
+        ("offsets-with-commas", variant(false, false, Some(","))),
+        ("y-up", variant(true, false, None)),
+        ("start-at-1", variant(false, true, None)),
+        ("y-up-start-at-1", variant(true, true, None)),
+        ("all", variant(true, true, Some(""))),
+    ];
+    for (label, export) in &variants {
+        let name = format!("xmalab-2d-{label}.csv");
+        for (_, truth) in truths(&out) {
+            let text = points2d_csv_as(&truth, export);
+            std::fs::write(dest.join(&truth.run.id).join(&name), text).unwrap();
+        }
+        let pixels = PixelOptions {
+            y_axis: if export.y_up { YAxis::Up } else { YAxis::Down },
+            first_pixel: if export.start_at_one {
+                FirstPixel::One
+            } else {
+                FirstPixel::Zero
+            },
+        };
+        assert_offset_residuals(&evaluate_xmalab(&out, &dest, &name, pixels), &name);
+    }
+    // The header and row XMALab writes with offset columns, two cameras: no comma after
+    // `cam0_offset` nor after `cam1_offset`, the header two cells shorter than the row.
+    let (_, truth) = truths(&out).remove(0);
+    let text = points2d_csv_as(&truth, &variants[5].1);
+    let (head, row) = (text.lines().next().unwrap(), text.lines().nth(1).unwrap());
+    assert!(
+        head.starts_with("cam0_offsetcam1_offsetK1_cam1_X,K1_cam1_Y,K1_cam2_X,K1_cam2_Y,K2_"),
+        "{head}"
+    );
+    assert!(row.starts_with("0,0,"), "{row}");
+    assert_eq!(head.split(',').count() + 2, row.split(',').count());
+    // The command line.
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--measured",
+            "xmalab-2d-all.csv",
+            "--results-in",
+            dest.to_str().unwrap(),
+            "--xmalab-2d-y-axis",
+            "up",
+            "--xmalab-2d-start-at",
+            "1",
+            "--format",
+            "csv",
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("report-xmalab-2d-all/report.csv").is_file());
+    // The options of 2-D points given for a rigid-body export are refused.
+    std::fs::write(
+        dest.join(&truth.run.id).join("rigid.csv"),
+        rigid_body_csv(&truth),
+    )
+    .unwrap();
+    let o = rsasim(
+        &[
+            "evaluate",
+            out.to_str().unwrap(),
+            "--measured",
+            "rigid.csv",
+            "--results-in",
+            dest.to_str().unwrap(),
+            "--xmalab-2d-y-axis",
+            "up",
+        ],
+        &[],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains(":1:7") && e.contains("--xmalab-2d-y-axis up"),
+        "{e}"
+    );
 }
 
 /// Runs `evaluate` on one bad XMALab file in the first run folder and returns its stderr.
@@ -428,6 +572,47 @@ fn bad_xmalab_files_are_refused_with_file_line_and_column() {
     let e = evaluate_bad(&out, &dest, &id, "K1_cam1_X,K1_cam1_Y\n1,2\n");
     assert!(
         e.contains(&format!("{file}:1:11")) && e.contains("not a multiple of 4"),
+        "{e}"
+    );
+    // Offset columns in a form XMALab does not write: numbered from 1; a camera skipped; one
+    // for two cameras; an offset value that is not a number.
+    let good2d = points2d_csv_as(
+        &truth,
+        &Export2d {
+            offset_columns: Some(""),
+            ..Default::default()
+        },
+    );
+    let e = evaluate_bad(
+        &out,
+        &dest,
+        &id,
+        &good2d.replacen("cam0_offsetcam1", "cam1_offsetcam2", 1),
+    );
+    assert!(
+        e.contains(&format!("{file}:1:1"))
+            && e.contains("`cam1_offsetcam2_offsetK1_cam1_X` is no offset column XMALab writes"),
+        "{e}"
+    );
+    let e = evaluate_bad(
+        &out,
+        &dest,
+        &id,
+        &good2d.replacen("cam1_offset", "cam2_offset", 1),
+    );
+    assert!(
+        e.contains(&format!("{file}:1:12")) && e.contains("cam0_offsetcam1_offset"),
+        "{e}"
+    );
+    let e = evaluate_bad(&out, &dest, &id, &good2d.replacen("cam1_offset", "", 1));
+    assert!(
+        e.contains(&format!("{file}:1:1"))
+            && e.contains("1 offset column(s) for the run's 2 camera(s)"),
+        "{e}"
+    );
+    let e = evaluate_bad(&out, &dest, &id, &good2d.replacen("\n0,", "\nzero,", 1));
+    assert!(
+        e.contains(&format!("{file}:2:1")) && e.contains("`zero`"),
         "{e}"
     );
     // A marker that is no bead.

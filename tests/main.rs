@@ -10,6 +10,7 @@ mod common;
 mod attenuation;
 mod bad_scenarios;
 mod blind;
+mod camera;
 mod conformance;
 mod conventions;
 mod deploy;

@@ -159,6 +159,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
                 confidence: Confidence::default(),
                 mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
                 study: Default::default(),
+                xmalab_2d: Default::default(),
             },
         )
         .unwrap();
@@ -227,6 +228,7 @@ fn reconstruct_without_truth(out: &std::path::Path, args: &[&str], name: &str) -
             confidence: Confidence::default(),
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             study: Default::default(),
+            xmalab_2d: Default::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"))

@@ -78,6 +78,10 @@ pub fn execute(args: EvaluateArgs) -> Outcome {
         },
         mtpm_threshold_mm,
         study,
+        xmalab_2d: rsasim::interop::xmalab_points2d::PixelOptions {
+            y_axis: args.xmalab_2d_y_axis.into(),
+            first_pixel: args.xmalab_2d_start_at.into(),
+        },
     };
     let reports = Reports {
         formats,

@@ -2,10 +2,10 @@
 
 use std::time::Instant;
 
-use rsasim::interop::export::{self, Error, Options};
+use rsasim::interop::export::{self, Options};
 
 use super::Outcome;
-use super::shared::report_errors;
+use super::shared::report_folder_error;
 use crate::cli::ExportArgs;
 
 /// Exports (errors in the input: exit 2, nothing written; a failure while writing: exit 1).
@@ -20,17 +20,8 @@ pub fn execute(args: ExportArgs) -> Outcome {
     };
     let dir = &args.dir;
     let start = Instant::now();
-    let summary =
-        export::export(&args.out, args.truth.as_deref(), dir, &options).map_err(|e| match e {
-            Error::Input(errors) => report_errors(&errors),
-            Error::Write(why) => {
-                eprintln!(
-                    "error: writing {} failed: {why}\n  = note: nothing was written there",
-                    dir.display()
-                );
-                1
-            }
-        })?;
+    let summary = export::export(&args.out, args.truth.as_deref(), dir, &options)
+        .map_err(|e| report_folder_error(e, dir))?;
     summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
     eprintln!(
         "rsasim export: {} run(s), {} files for {} in {:.1} s -> {}",

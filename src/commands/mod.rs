@@ -2,6 +2,7 @@
 //! ([`crate::cli`]) and returns `Err(exit code)` on failure: 2 for bad input (nothing was
 //! written), 1 for a failure while writing. Every message is printed where it arises.
 
+pub mod camera;
 pub mod evaluate;
 pub mod expand;
 pub mod export;

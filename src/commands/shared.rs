@@ -27,6 +27,21 @@ pub fn report_errors(errors: &[Diagnostic]) -> u8 {
     2
 }
 
+/// Reports why a new folder (`export`, `camera --dir`) was not written: bad input (exit 2) or a
+/// failure while writing `dir` (exit 1); nothing was written either way.
+pub fn report_folder_error(e: rsasim::interop::export::Error, dir: &Path) -> u8 {
+    match e {
+        rsasim::interop::export::Error::Input(errors) => report_errors(&errors),
+        rsasim::interop::export::Error::Write(why) => {
+            eprintln!(
+                "error: writing {} failed: {why}\n  = note: nothing was written there",
+                dir.display()
+            );
+            1
+        }
+    }
+}
+
 /// Loads and checks a scenario (run by run, without keeping the runs), printing warnings;
 /// errors are printed and give exit code 2.
 pub fn check(path: &Path, allow: &Allowances) -> Result<Checked, u8> {

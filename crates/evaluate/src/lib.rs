@@ -70,6 +70,9 @@ pub struct Options {
     pub mtpm_threshold_mm: f64,
     /// A clinical study's options (used when the folder has `study.json`).
     pub study: study::StudyOptions,
+    /// How XMALab's 2-D point exports were written (y axis, first pixel), which their files
+    /// do not say.
+    pub xmalab_2d: crate::interop::xmalab_points2d::PixelOptions,
 }
 
 /// The default MTPM threshold, mm: the continuous migration between one and two years above
@@ -132,7 +135,7 @@ pub fn evaluate_with_truth(
                     continue;
                 }
                 let loaded = if name.to_ascii_lowercase().ends_with(".csv") {
-                    crate::interop::xmalab::read_export(&file, &t.truth)
+                    crate::interop::xmalab::read_export(&file, &t.truth, options.xmalab_2d)
                         .and_then(|m| check_measured(&file, "", m, &t.truth))
                 } else {
                     load_measured_json(&file, &t.truth)

@@ -1,12 +1,17 @@
 //! Interoperability with the programs XROMM and RSA labs use, after `output` and `reconstruct`
 //! in the flow: `rsasim export` writes an output folder as XMALab or Autoscoper open it (cameras
 //! with the known calibration, images, calibration object, models), and `rsasim evaluate` reads
-//! XMALab's exports back ([`xmalab::read_export`]).
+//! XMALab's exports back ([`xmalab::read_export`]); `rsasim camera` writes one beamline's camera
+//! in MayaCam, DLT-11 and OpenCV form ([`camera_input`], [`camera_files`]).
 
 pub mod autoscoper;
 pub mod camera;
+pub mod camera_files;
+pub mod camera_input;
+pub mod detector_corners;
 pub mod export;
 pub mod mesh_text;
 pub mod reference_beads;
 pub mod volume;
 pub mod xmalab;
+pub mod xmalab_points2d;

@@ -17,10 +17,10 @@
 //!   in the world, mm.
 //! - **3-D points** (one file): optional `Frame` column, then per marker `<name>_X,_Y,_Z`, mm,
 //!   world frame; `NaN` for an untracked marker.
-//! - **2-D points** (one file, XMALab's default pixels: 0-based, y down): optional `Frame` column,
-//!   then per marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major);
-//!   pixels of the exported (flipped) images. They are triangulated with the exported true
-//!   cameras.
+//! - **2-D points** (one file): optional `Frame` column, or XMALab's offset columns, then per
+//!   marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major); pixels of the
+//!   exported (flipped) images, 0-based and y down unless the user states XMALab's other
+//!   options ([`super::xmalab_points2d`]). They are triangulated with the exported true cameras.
 
 use std::path::Path;
 
@@ -30,6 +30,8 @@ use crate::diagnostic::{Diagnostic, cut};
 use crate::geometry::{fit_rigid, rotation_rows, triangulate};
 use crate::output::measured::{FitQuality, MeasuredPoint, MeasuredPose};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
+
+use super::xmalab_points2d::{PixelOptions, offset_columns};
 
 /// The frame specification of a calibration object: a header line, then `x,y,z` per bead.
 /// XMALab's blob detection looks for dark beads unless the header holds `white`
@@ -93,8 +95,12 @@ struct Cell<'a> {
 }
 
 fn cells(line: &str) -> Vec<Cell<'_>> {
+    cells_from(line, 1)
+}
+
+/// [`cells`] of a line's tail that starts at character column `column`.
+fn cells_from(line: &str, mut column: usize) -> Vec<Cell<'_>> {
     let mut out = Vec::new();
-    let mut column = 1;
     for part in line.split(',') {
         let lead = part.chars().count() - part.trim_start().chars().count();
         out.push(Cell {
@@ -117,9 +123,14 @@ fn without_filter_suffix(name: &str) -> &str {
     name
 }
 
-/// Reads an XMALab export for one run: rigid-body transformations or 3-D points, told apart by
-/// the header. `truth` gives the run id and the phantoms (ids, beads) names are matched against.
-pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnostic>> {
+/// Reads an XMALab export for one run: rigid-body transformations, 3-D points or 2-D points,
+/// told apart by the header. `truth` gives the run id, the phantoms (ids, beads) names are
+/// matched against and the cameras; `pixels` how the 2-D points were exported.
+pub fn read_export(
+    file: &Path,
+    truth: &Truth,
+    pixels: PixelOptions,
+) -> Result<Measured, Vec<Diagnostic>> {
     let bytes =
         crate::output::received::read_in_folder(file, crate::output::received::MAX_TABLE_BYTES)
             .map_err(|d| vec![d])?;
@@ -148,9 +159,24 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
             ),
         ]);
     };
-    let head = cells(header);
-    let frame_column = head.first().is_some_and(|c| c.text == "Frame");
-    let names = &head[usize::from(frame_column)..];
+    // `lead`: the cells every row starts with that name no value (`Frame`, the offset columns).
+    let offsets = offset_columns(header, truth.run.detectors.len())
+        .map_err(|(column, message, help)| at(header_line, column, message, &help))?;
+    let (lead, names) = match offsets {
+        Some(o) => {
+            let skipped = header[..o.bytes].chars().count();
+            (o.count, cells_from(&header[o.bytes..], skipped + 1))
+        }
+        None => {
+            let mut head = cells(header);
+            let frame_column = head.first().is_some_and(|c| c.text == "Frame");
+            (
+                usize::from(frame_column),
+                head.split_off(usize::from(frame_column)),
+            )
+        }
+    };
+    let names = names.as_slice();
     let rigid = names
         .first()
         .is_some_and(|c| without_filter_suffix(c.text).ends_with("_R11"));
@@ -160,6 +186,23 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
     let points = names
         .first()
         .is_some_and(|c| without_filter_suffix(c.text).ends_with("_X"));
+    if (offsets.is_some() || pixels != PixelOptions::default()) && !planar {
+        let c = names.first().map_or(1, |c| c.column);
+        return Err(at(
+            header_line,
+            c,
+            format!(
+                "{} XMALab's 2D points, but the header `{}` is not `<marker>_cam1_X,…`",
+                if offsets.is_some() {
+                    "offset columns belong to".to_string()
+                } else {
+                    format!("{} are options of", pixels.flags())
+                },
+                cut(header)
+            ),
+            "give XMALab's 2D points export, or leave out the --xmalab-2d options for its other exports",
+        ));
+    }
     if !rigid && !points {
         let c = names.first().map_or(1, |c| c.column);
         return Err(at(
@@ -187,20 +230,37 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
     }
     let (row_line, row) = data[0];
     let values = cells(row);
-    if values.len() != head.len() {
+    if values.len() != lead + names.len() {
         return Err(at(
             row_line,
             values.last().map_or(1, |c| c.column),
             format!(
-                "the row has {} values but the header {} columns",
+                "the row has {} values but the header {} columns{}",
                 values.len(),
-                head.len()
+                lead + names.len(),
+                if offsets.is_some() {
+                    format!(" ({lead} offset columns and {})", names.len())
+                } else {
+                    String::new()
+                }
             ),
             "every row needs as many values as the header",
         ));
     }
+    if offsets.is_some()
+        && let Some(c) = values[..lead]
+            .iter()
+            .find(|c| c.text.parse::<f64>().is_err())
+    {
+        return Err(at(
+            row_line,
+            c.column,
+            format!("offset column `{}` is not a number", cut(c.text)),
+            "XMALab writes 0 in every offset column",
+        ));
+    }
     let mut numbers = Vec::with_capacity(names.len());
-    for c in &values[usize::from(frame_column)..] {
+    for c in &values[lead..] {
         let x = if c.text.eq_ignore_ascii_case("nan") {
             f64::NAN
         } else {
@@ -299,7 +359,7 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
             if (bottom[0].abs() + bottom[1].abs() + bottom[2].abs() + (bottom[3] - 1.0).abs())
                 > 1e-6
             {
-                let c = &values[usize::from(frame_column) + b * 16 + 3];
+                let c = &values[lead + b * 16 + 3];
                 return Err(at(
                     row_line,
                     c.column,
@@ -405,7 +465,10 @@ pub fn read_export(file: &Path, truth: &Truth) -> Result<Measured, Vec<Diagnosti
                 .iter()
                 .zip(v.chunks(2))
                 .filter(|(_, xy)| !xy[0].is_nan() && !xy[1].is_nan())
-                .map(|((source, cam), xy)| (*source, cam.ray_direction([xy[0], xy[1]])))
+                .map(|((source, cam), xy)| {
+                    let xy = pixels.to_xmalab([xy[0], xy[1]], cam.size[1]);
+                    (*source, cam.ray_direction(xy))
+                })
                 .collect();
             let (p, _) = triangulate(&rays);
             p
@@ -565,7 +628,7 @@ mod tests {
                               "markers": [{"id": "K1", "position_mm": [0, 0, 0], "diameter_mm": 1}]}]}"#,
         )
         .unwrap();
-        let e = read_export(&file, &truth).unwrap_err();
+        let e = read_export(&file, &truth, PixelOptions::default()).unwrap_err();
         assert_eq!(e[0].line_col.map(|l| l.0), Some(1));
         assert!(
             e[0].message.contains("should be `<body>_R11`"),
@@ -573,7 +636,7 @@ mod tests {
             e[0].message
         );
         std::fs::write(&file, "K1_X,K1_Y,K1_Z,é,b,c\n1,2,3,4,5,6\n").unwrap();
-        let e = read_export(&file, &truth).unwrap_err();
+        let e = read_export(&file, &truth, PixelOptions::default()).unwrap_err();
         assert!(
             e[0].message.contains("should be `<marker>_X`"),
             "{}",

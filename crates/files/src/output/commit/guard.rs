@@ -41,6 +41,8 @@ pub enum FolderKind {
     /// already there (even an earlier export, which XMALab or the user may have added to) is
     /// refused.
     Export,
+    /// The folder `rsasim camera --dir` writes: always a new folder, as [`FolderKind::Export`].
+    Camera,
 }
 
 /// An output path resolved to an absolute folder and a name, links in the folder resolved (the
@@ -226,6 +228,16 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
                 "give a new folder with --dir (results saved there by XMALab are never overwritten)",
             ));
         }
+        FolderKind::Camera => {
+            return Err(refuse(
+                shown,
+                format!(
+                    "the camera folder {} already exists; rsasim camera writes only new folders",
+                    shown.display()
+                ),
+                "give a new folder with --dir, or print the cameras without --dir",
+            ));
+        }
     };
     if !force {
         return Err(refuse(
@@ -268,7 +280,7 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
     let recognised = match kind {
         FolderKind::Simulation { .. } => simulation_output(&target.path),
         FolderKind::Report => report_folder(&target.path),
-        FolderKind::Export => Err("an existing folder".to_string()),
+        FolderKind::Export | FolderKind::Camera => Err("an existing folder".to_string()),
     };
     if let (FolderKind::Simulation { .. }, Ok(())) = (kind, &recognised) {
         let foreign = foreign_files(&target.path);
@@ -300,7 +312,7 @@ pub fn check(target: &Resolved, kind: &FolderKind) -> Result<Existing, Box<Diagn
                 FolderKind::Report => {
                     "give a new report folder with --report, or move that folder away first"
                 }
-                FolderKind::Export => "give a new folder with --dir",
+                FolderKind::Export | FolderKind::Camera => "give a new folder with --dir",
             },
         )
     })

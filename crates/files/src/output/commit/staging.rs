@@ -73,8 +73,9 @@ fn complete(dir: &Path, kind: &FolderKind) -> bool {
         && match kind {
             FolderKind::Simulation { .. } => guard::complete_output(dir).is_ok(),
             FolderKind::Report => dir.join(REPORT_MARKER).is_file(),
-            // An export never replaces a folder, so none is ever renamed aside to restore.
-            FolderKind::Export => false,
+            // An export (or camera folder) never replaces a folder, so none is ever renamed
+            // aside to restore.
+            FolderKind::Export | FolderKind::Camera => false,
         }
 }
 
