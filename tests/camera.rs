@@ -5,7 +5,11 @@
 
 use std::path::Path;
 
-use crate::common::{ALLOW_MODELS, rsasim, rsasim_ok, run_scenario, truths};
+use std::process::Output;
+
+use crate::common::{
+    ALLOW_MODELS, MayaCam, beads, read_mayacam as mayacam, rsasim, rsasim_ok, run_scenario, truths,
+};
 
 /// The blocks `rsasim camera` prints: (label line, text) in order.
 fn blocks(stdout: &[u8]) -> Vec<(String, String)> {
@@ -31,27 +35,6 @@ fn block<'a>(blocks: &'a [(String, String)], label: &str) -> &'a str {
         .find(|(l, _)| l.starts_with(label))
         .unwrap_or_else(|| panic!("no block {label}"))
         .1
-}
-
-fn numbers(line: &str) -> Vec<f64> {
-    line.split(',').map(|v| v.trim().parse().unwrap()).collect()
-}
-
-/// A MayaCam 2.0 text read as Autoscoper reads it (libautoscoper/src/Camera.cpp,
-/// `Camera::loadMayaCam2`: 0-based line 1 the size, 4–6 K, 9–11 R, 14–16 t, comma-separated):
-/// (size, K, R, t).
-type MayaCam = ([f64; 2], [[f64; 3]; 3], [[f64; 3]; 3], [f64; 3]);
-
-fn mayacam(text: &str) -> MayaCam {
-    let l: Vec<&str> = text.lines().collect();
-    let m3 = |a: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(numbers(l[a + i])).unwrap());
-    let s = numbers(l[1]);
-    (
-        [s[0], s[1]],
-        m3(4),
-        m3(9),
-        [0, 1, 2].map(|i| numbers(l[14 + i])[0]),
-    )
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -100,17 +83,31 @@ fn matrix(v: &serde_json::Value) -> [[f64; 3]; 3] {
 /// at y = +80 mm and columns run towards +x.
 const CORNERS: &str = "-100,80,0;100,80,0;100,-80,0;-100,-80,0";
 
-#[test]
-fn a_camera_computed_by_hand() {
-    let o = rsasim_ok(&[
+/// `rsasim camera` of a source, corners and pixel counts, with `extra` arguments.
+fn camera_of(source: &str, corners: &str, pixels: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
         "camera",
         "--source-mm",
-        "0,0,1000",
+        source,
         "--corners-mm",
-        CORNERS,
+        corners,
         "--pixels",
-        "1000,800",
-    ]);
+        pixels,
+    ];
+    args.extend(extra);
+    rsasim(&args, &[])
+}
+
+/// [`camera_of`] that must succeed.
+fn camera_ok(source: &str, corners: &str, pixels: &str, extra: &[&str]) -> Output {
+    let o = camera_of(source, corners, pixels, extra);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
+#[test]
+fn a_camera_computed_by_hand() {
+    let o = camera_ok("0,0,1000", CORNERS, "1000,800", &[]);
     let b = blocks(&o.stdout);
     let (size, k, r, t) = mayacam(block(&b, "det1: MayaCam"));
     // By hand: f = distance / pitch = 1000 / 0.2 = 5000 px. The source's foot (the origin) is
@@ -174,19 +171,13 @@ fn a_camera_computed_by_hand() {
     // The same three forms as files.
     let tmp = tempfile::tempdir().unwrap();
     let dest = tmp.path().join("cams");
-    rsasim_ok(&[
-        "camera",
-        "--source-mm",
+    let dest_s = dest.to_str().unwrap();
+    camera_ok(
         "0,0,1000",
-        "--corners-mm",
         CORNERS,
-        "--pixels",
         "1000,800",
-        "--detector",
-        "c-arm",
-        "--dir",
-        dest.to_str().unwrap(),
-    ]);
+        &["--detector", "c-arm", "--dir", dest_s],
+    );
     let read = |name: &str| std::fs::read_to_string(dest.join(name)).unwrap();
     assert_eq!(read("c-arm_MayaCam.txt"), block(&b, "det1: MayaCam"));
     assert_eq!(read("dlt11.csv"), block(&b, "det1: DLT-11"));
@@ -234,15 +225,12 @@ fn a_scenarios_detectors_through_their_corners_give_the_same_cameras() {
             );
         }
         let size = &json["image_size_px"];
-        let o = rsasim_ok(&[
-            "camera",
-            "--source-mm",
+        let o = camera_ok(
             &triple(&json["source_mm"]),
-            "--corners-mm",
             &corners.join(";"),
-            "--pixels",
             &format!("{},{}", size[0], size[1]),
-        ]);
+            &[],
+        );
         let back = blocks(&o.stdout);
         let want = block(&b, &format!("{det}: MayaCam"));
         let got = block(&back, "det1: MayaCam");
@@ -262,30 +250,19 @@ fn a_runs_cameras_put_every_bead_on_its_truth_pixel() {
     let o = rsasim_ok(&["camera", out.to_str().unwrap(), "--run", &truth.run.id]);
     let b = blocks(&o.stdout);
     let mut checked = 0;
-    for image in &truth.images {
+    for (detector, bead_mm, pixel) in beads(&truth) {
         let json: serde_json::Value =
-            serde_json::from_str(block(&b, &format!("{}: OpenCV", image.detector))).unwrap();
+            serde_json::from_str(block(&b, &format!("{detector}: OpenCV"))).unwrap();
         let (k, r) = (matrix(&json["K"]), matrix(&json["R"]));
         let t = [0, 1, 2].map(|i| json["t_mm"][i].as_f64().unwrap());
         let h = json["image_size_px"][1].as_f64().unwrap();
-        for m in image.markers.iter().filter(|m| m.inside) {
-            let bead = truth
-                .run
-                .phantoms
-                .iter()
-                .find(|p| p.id == m.phantom)
-                .and_then(|p| p.markers.iter().find(|b| b.id == m.id))
-                .unwrap();
-            let got = project(&k, &r, &t, bead.position_mm.to_array());
-            let want = [m.pixel[0] - 0.5, h - m.pixel[1] - 0.5];
-            assert!(
-                (got[0] - want[0]).abs() < 1e-6 && (got[1] - want[1]).abs() < 1e-6,
-                "{} {}: {got:?} vs {want:?}",
-                image.detector,
-                m.id
-            );
-            checked += 1;
-        }
+        let got = project(&k, &r, &t, bead_mm);
+        let want = [pixel[0] - 0.5, h - pixel[1] - 0.5];
+        assert!(
+            (got[0] - want[0]).abs() < 1e-6 && (got[1] - want[1]).abs() < 1e-6,
+            "{detector} {bead_mm:?}: {got:?} vs {want:?}"
+        );
+        checked += 1;
     }
     assert!(checked > 4, "{checked} beads");
     // An output folder needs --run; a run it does not have, or a changed truth, is refused.
@@ -306,20 +283,7 @@ fn a_runs_cameras_put_every_bead_on_its_truth_pixel() {
 
 /// Runs `rsasim camera` with corner arguments that must be refused; returns stderr.
 fn refused(source: &str, corners: &str, pixels: &str, dest: &Path) -> String {
-    let o = rsasim(
-        &[
-            "camera",
-            "--source-mm",
-            source,
-            "--corners-mm",
-            corners,
-            "--pixels",
-            pixels,
-            "--dir",
-            dest.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = camera_of(source, corners, pixels, &["--dir", dest.to_str().unwrap()]);
     let e = String::from_utf8_lossy(&o.stderr).into_owned();
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(o.stdout.is_empty(), "{e}");
@@ -404,19 +368,11 @@ fn bad_corners_and_sources_are_refused_naming_the_option() {
     );
     // An existing folder is never written into.
     std::fs::create_dir(&dest).unwrap();
-    let o = rsasim(
-        &[
-            "camera",
-            "--source-mm",
-            "0,0,1000",
-            "--corners-mm",
-            CORNERS,
-            "--pixels",
-            "1000,800",
-            "--dir",
-            dest.to_str().unwrap(),
-        ],
-        &[],
+    let o = camera_of(
+        "0,0,1000",
+        CORNERS,
+        "1000,800",
+        &["--dir", dest.to_str().unwrap()],
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));

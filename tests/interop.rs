@@ -7,7 +7,7 @@ use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::{read_tiff, rsasim, run_scenario, truths};
+use common::{beads, numbers, read_tiff, rsasim, run_scenario, truths};
 use rsasim::evaluate::stats::Confidence;
 use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
@@ -34,50 +34,9 @@ fn exported(to: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
     (tmp, out, dest)
 }
 
-/// Numbers of a comma-separated line.
-fn numbers(line: &str) -> Vec<f64> {
-    line.split(',').map(|v| v.trim().parse().unwrap()).collect()
-}
-
-/// Reads a MayaCam 2.0 file by its documented line numbers: (W, H, K, R, t).
-fn mayacam(file: &Path) -> ([f64; 2], [[f64; 3]; 3], [[f64; 3]; 3], [f64; 3]) {
-    let text = std::fs::read_to_string(file).unwrap();
-    let l: Vec<&str> = text.lines().collect();
-    assert_eq!(
-        (l[0], l[3], l[8], l[13]),
-        ("image size", "camera matrix", "rotation", "translation")
-    );
-    let m3 = |a: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(numbers(l[a + i])).unwrap());
-    let s = numbers(l[1]);
-    (
-        [s[0], s[1]],
-        m3(4),
-        m3(9),
-        [0, 1, 2].map(|i| numbers(l[14 + i])[0]),
-    )
-}
-
-/// Every bead of every image of `truth` with its box-frame centre and truth pixel, for the
-/// beads whose centre falls on the detector.
-fn beads(truth: &Truth) -> Vec<(String, [f64; 3], [f64; 2])> {
-    let mut out = Vec::new();
-    for image in &truth.images {
-        for m in image.markers.iter().filter(|m| m.inside) {
-            let p = truth
-                .run
-                .phantoms
-                .iter()
-                .find(|p| p.id == m.phantom)
-                .unwrap()
-                .markers
-                .iter()
-                .find(|b| b.id == m.id)
-                .unwrap()
-                .position_mm;
-            out.push((image.detector.clone(), p.to_array(), m.pixel));
-        }
-    }
-    out
+/// Reads a MayaCam 2.0 file ([`common::read_mayacam`]): (W, H, K, R, t).
+fn mayacam(file: &Path) -> common::MayaCam {
+    common::read_mayacam(&std::fs::read_to_string(file).unwrap())
 }
 
 #[test]
@@ -399,19 +358,7 @@ fn hand_made_xmalab_exports_give_the_residuals_put_into_them() {
         assert_offset_residuals(&report, name);
     }
     // The command line: the same file names found under --results-in.
-    let o = rsasim(
-        &[
-            "evaluate",
-            out.to_str().unwrap(),
-            "--measured",
-            "xmalab-points.csv",
-            "--results-in",
-            dest.to_str().unwrap(),
-            "--format",
-            "csv",
-        ],
-        &[],
-    );
+    let o = evaluate_cli(&out, &dest, "xmalab-points.csv", &["--format", "csv"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("report-xmalab-points/report.csv").is_file());
 }
@@ -463,22 +410,12 @@ fn every_variant_of_xmalab_2d_points_gives_the_residuals_put_into_them() {
     assert!(row.starts_with("0,0,"), "{row}");
     assert_eq!(head.split(',').count() + 2, row.split(',').count());
     // The command line.
-    let o = rsasim(
-        &[
-            "evaluate",
-            out.to_str().unwrap(),
-            "--measured",
-            "xmalab-2d-all.csv",
-            "--results-in",
-            dest.to_str().unwrap(),
-            "--xmalab-2d-y-axis",
-            "up",
-            "--xmalab-2d-start-at",
-            "1",
-            "--format",
-            "csv",
-        ],
-        &[],
+    let flags = ["--xmalab-2d-y-axis", "up", "--xmalab-2d-start-at", "1"];
+    let o = evaluate_cli(
+        &out,
+        &dest,
+        "xmalab-2d-all.csv",
+        &[&flags[..], &["--format", "csv"]].concat(),
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("report-xmalab-2d-all/report.csv").is_file());
@@ -488,48 +425,39 @@ fn every_variant_of_xmalab_2d_points_gives_the_residuals_put_into_them() {
         rigid_body_csv(&truth),
     )
     .unwrap();
-    let o = rsasim(
-        &[
-            "evaluate",
-            out.to_str().unwrap(),
-            "--measured",
-            "rigid.csv",
-            "--results-in",
-            dest.to_str().unwrap(),
-            "--xmalab-2d-y-axis",
-            "up",
-        ],
-        &[],
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{e}");
+    let e = evaluate_refused(&out, &dest, "rigid.csv", &flags[..2]);
     assert!(
         e.contains(":1:7") && e.contains("--xmalab-2d-y-axis up"),
         "{e}"
     );
 }
 
+/// `rsasim evaluate OUT --measured NAME --results-in DEST` and `extra` arguments.
+fn evaluate_cli(out: &Path, dest: &Path, name: &str, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "evaluate",
+        out.to_str().unwrap(),
+        "--measured",
+        name,
+        "--results-in",
+        dest.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    rsasim(&args, &[])
+}
+
+/// [`evaluate_cli`] that must be refused with exit code 2; returns its stderr.
+fn evaluate_refused(out: &Path, dest: &Path, name: &str, extra: &[&str]) -> String {
+    let o = evaluate_cli(out, dest, name, extra);
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    e
+}
+
 /// Runs `evaluate` on one bad XMALab file in the first run folder and returns its stderr.
 fn evaluate_bad(out: &Path, dest: &Path, first_run: &str, text: &str) -> String {
     std::fs::write(dest.join(first_run).join("bad.csv"), text).unwrap();
-    let o = rsasim(
-        &[
-            "evaluate",
-            out.to_str().unwrap(),
-            "--measured",
-            "bad.csv",
-            "--results-in",
-            dest.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stderr).into_owned()
+    evaluate_refused(out, dest, "bad.csv", &[])
 }
 
 #[test]
@@ -583,38 +511,38 @@ fn bad_xmalab_files_are_refused_with_file_line_and_column() {
             ..Default::default()
         },
     );
-    let e = evaluate_bad(
-        &out,
-        &dest,
-        &id,
-        &good2d.replacen("cam0_offsetcam1", "cam1_offsetcam2", 1),
-    );
-    assert!(
-        e.contains(&format!("{file}:1:1"))
-            && e.contains("`cam1_offsetcam2_offsetK1_cam1_X` is no offset column XMALab writes"),
-        "{e}"
-    );
-    let e = evaluate_bad(
-        &out,
-        &dest,
-        &id,
-        &good2d.replacen("cam1_offset", "cam2_offset", 1),
-    );
-    assert!(
-        e.contains(&format!("{file}:1:12")) && e.contains("cam0_offsetcam1_offset"),
-        "{e}"
-    );
-    let e = evaluate_bad(&out, &dest, &id, &good2d.replacen("cam1_offset", "", 1));
-    assert!(
-        e.contains(&format!("{file}:1:1"))
-            && e.contains("1 offset column(s) for the run's 2 camera(s)"),
-        "{e}"
-    );
-    let e = evaluate_bad(&out, &dest, &id, &good2d.replacen("\n0,", "\nzero,", 1));
-    assert!(
-        e.contains(&format!("{file}:2:1")) && e.contains("`zero`"),
-        "{e}"
-    );
+    for (from, to, at, needle) in [
+        (
+            "cam0_offsetcam1",
+            "cam1_offsetcam2",
+            "1:1",
+            "`cam1_offsetcam2_offsetK1_cam1_X` is no offset column XMALab writes",
+        ),
+        (
+            "cam1_offset",
+            "cam2_offset",
+            "1:12",
+            "cam0_offsetcam1_offset",
+        ),
+        (
+            "cam1_offset",
+            "",
+            "1:1",
+            "1 offset column(s) for the run's 2 camera(s)",
+        ),
+        (
+            "\n0,",
+            "\nzero,",
+            "2:1",
+            "offset column `zero` is not a number",
+        ),
+    ] {
+        let e = evaluate_bad(&out, &dest, &id, &good2d.replacen(from, to, 1));
+        assert!(
+            e.contains(&format!("{file}:{at}")) && e.contains(needle),
+            "{e}"
+        );
+    }
     // A marker that is no bead.
     let e = evaluate_bad(&out, &dest, &id, "Q9_X,Q9_Y,Q9_Z\n1,2,3\n");
     assert!(

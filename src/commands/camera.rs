@@ -61,10 +61,10 @@ fn cameras(args: &CameraArgs) -> Result<Vec<NamedCamera>, Vec<Diagnostic>> {
                 args.corners_mm.as_deref().unwrap_or_default(),
                 args.pixels.as_deref().unwrap_or_default(),
             )
-            .map_err(|d| vec![d])?;
+            .map_err(|d| vec![*d])?;
             corner_camera(&beamline)
                 .map(|c| vec![c])
-                .map_err(|d| vec![d])
+                .map_err(|d| vec![*d])
         }
         (None, None) => Err(refuse(
             "rsasim camera",

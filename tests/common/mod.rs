@@ -161,3 +161,53 @@ pub fn rehash(out: &Path, rels: &[&str]) {
         m.files.sort_by(|a, b| a.path.cmp(&b.path));
     });
 }
+
+/// Numbers of a comma-separated line.
+pub fn numbers(line: &str) -> Vec<f64> {
+    line.split(',').map(|v| v.trim().parse().unwrap()).collect()
+}
+
+/// A MayaCam 2.0 camera: image size (width, height), K, R, t.
+pub type MayaCam = ([f64; 2], [[f64; 3]; 3], [[f64; 3]; 3], [f64; 3]);
+
+/// MayaCam 2.0 text read as Autoscoper reads it (libautoscoper/src/Camera.cpp,
+/// `Camera::loadMayaCam2`: 0-based line 1 the size, 4–6 K, 9–11 R, 14–16 t, comma-separated),
+/// with the section names XMALab writes checked.
+pub fn read_mayacam(text: &str) -> MayaCam {
+    let l: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        (l[0], l[3], l[8], l[13]),
+        ("image size", "camera matrix", "rotation", "translation")
+    );
+    let m3 = |a: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(numbers(l[a + i])).unwrap());
+    let s = numbers(l[1]);
+    (
+        [s[0], s[1]],
+        m3(4),
+        m3(9),
+        [0, 1, 2].map(|i| numbers(l[14 + i])[0]),
+    )
+}
+
+/// Every bead of every image of `truth` with its box-frame centre and truth pixel, for the
+/// beads whose centre falls on the detector.
+pub fn beads(truth: &rsasim::output::Truth) -> Vec<(String, [f64; 3], [f64; 2])> {
+    let mut out = Vec::new();
+    for image in &truth.images {
+        for m in image.markers.iter().filter(|m| m.inside) {
+            let p = truth
+                .run
+                .phantoms
+                .iter()
+                .find(|p| p.id == m.phantom)
+                .unwrap()
+                .markers
+                .iter()
+                .find(|b| b.id == m.id)
+                .unwrap()
+                .position_mm;
+            out.push((image.detector.clone(), p.to_array(), m.pixel));
+        }
+    }
+    out
+}

@@ -13,11 +13,13 @@ use crate::expand::Run;
 use crate::output::received::ReceivedFolder;
 
 /// The camera of a beamline given by its corners.
-pub fn corner_camera(beamline: &CornerBeamline) -> Result<NamedCamera, Diagnostic> {
+pub fn corner_camera(beamline: &CornerBeamline) -> Result<NamedCamera, Box<Diagnostic>> {
     let detector = beamline.detector()?;
     let field = |e: String| {
-        Diagnostic::file_error(Path::new("--source-mm"), e)
-            .with_help("give a source in front of the image, at a finite distance")
+        Box::new(
+            Diagnostic::file_error(Path::new("--source-mm"), e)
+                .with_help("give a source in front of the image, at a finite distance"),
+        )
     };
     let camera = PinholeCamera::of_beamline(beamline.source_mm, &detector).map_err(field)?;
     NamedCamera::new(beamline.source_mm, &detector, camera).map_err(field)

@@ -52,8 +52,8 @@ pub struct CornerBeamline {
     pub pixels: [u32; 2],
 }
 
-fn refuse(field: &str, message: String, help: &str) -> Diagnostic {
-    Diagnostic::file_error(Path::new(field), message).with_help(help)
+fn refuse(field: &str, message: String, help: &str) -> Box<Diagnostic> {
+    Box::new(Diagnostic::file_error(Path::new(field), message).with_help(help))
 }
 
 const SOURCE_HELP: &str = "give the focus position as X,Y,Z in mm, e.g. --source-mm 0,0,1000";
@@ -67,7 +67,7 @@ fn numbers(
     text: &str,
     count: usize,
     help: &str,
-) -> Result<Vec<f64>, Diagnostic> {
+) -> Result<Vec<f64>, Box<Diagnostic>> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if parts.len() != count {
         return Err(refuse(
@@ -104,7 +104,12 @@ fn numbers(
 impl CornerBeamline {
     /// Reads `--source-mm X,Y,Z`, `--corners-mm "x,y,z;…"` (four corners) and `--pixels W,H`;
     /// an error names the option and what would be valid.
-    pub fn parse(id: &str, source: &str, corners: &str, pixels: &str) -> Result<Self, Diagnostic> {
+    pub fn parse(
+        id: &str,
+        source: &str,
+        corners: &str,
+        pixels: &str,
+    ) -> Result<Self, Box<Diagnostic>> {
         if let Some(why) = crate::output::received::name_problem(id) {
             return Err(refuse(
                 "--detector",
@@ -158,7 +163,7 @@ impl CornerBeamline {
 
     /// rsasim's detector of these corners (see the module docs): refused when the corners are
     /// no rectangle within [`RECTANGLE_TOLERANCE`], or the source does not lie in front of it.
-    pub fn detector(&self) -> Result<DetectorState, Diagnostic> {
+    pub fn detector(&self) -> Result<DetectorState, Box<Diagnostic>> {
         let [p1, p2, p3, p4] = self.corners_mm;
         let (along_row, down) = (p2 - p1, p4 - p1);
         let scale = (p3 - p1).length();
@@ -206,7 +211,7 @@ impl CornerBeamline {
             bpp: 16,
         };
         let distance = (self.source_mm - detector.position_mm).dot(s);
-        if !(distance > 0.0) {
+        if distance.is_nan() || distance <= 0.0 {
             return Err(refuse(
                 "--source-mm",
                 format!(

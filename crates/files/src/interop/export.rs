@@ -785,12 +785,7 @@ fn write_run(
                 })
             })
             .collect::<Result<_, _>>()?;
-        let mut text = String::new();
-        for i in 0..11 {
-            let row: Vec<String> = dlts.iter().map(|l| l[i].to_string()).collect();
-            text += &row.join(",");
-            text.push('\n');
-        }
+        let text = super::camera_files::dlt11_csv(&dlts);
         write(&format!("{id}/calibration/dlt11.csv"), text.as_bytes())?;
         if let Some((c, Ok(four))) = &run.references {
             let cal = &run.truth.run.phantoms[*c];
