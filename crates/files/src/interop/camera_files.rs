@@ -20,7 +20,7 @@ use glam::DVec3;
 
 use super::camera::PinholeCamera;
 use super::detector_corners::corners_of;
-use super::export::Error;
+use super::failure::Error;
 use crate::expand::DetectorState;
 use crate::output::atomic::write_staged;
 use crate::output::commit::{FolderKind, OutputTarget};

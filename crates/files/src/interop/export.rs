@@ -129,26 +129,7 @@ pub struct Summary {
     pub notes: Vec<String>,
 }
 
-/// Why an export failed: bad input (exit 2, nothing written) or a write error (exit 1).
-#[derive(Debug)]
-pub enum Error {
-    /// Refused before writing.
-    Input(Vec<Diagnostic>),
-    /// Writing failed; nothing was committed.
-    Write(String),
-}
-
-impl From<Vec<Diagnostic>> for Error {
-    fn from(d: Vec<Diagnostic>) -> Self {
-        Error::Input(d)
-    }
-}
-
-impl From<Diagnostic> for Error {
-    fn from(d: Diagnostic) -> Self {
-        Error::Input(vec![d])
-    }
-}
+pub use super::failure::Error;
 
 /// One run, read and checked, ready to be written.
 struct RunExport {

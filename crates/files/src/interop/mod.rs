@@ -2,7 +2,9 @@
 //! in the flow: `rsasim export` writes an output folder as XMALab or Autoscoper open it (cameras
 //! with the known calibration, images, calibration object, models), and `rsasim evaluate` reads
 //! XMALab's exports back ([`xmalab::read_export`]); `rsasim camera` writes one beamline's camera
-//! in MayaCam, DLT-11 and OpenCV form ([`camera_input`], [`camera_files`]).
+//! in MayaCam, DLT-11 and OpenCV form ([`camera_input`], [`camera_files`]). The export's
+//! Autoscoper volumes and `.tra` truth are [`volume`]'s; XMALab's reference beads are chosen by
+//! [`reference_beads`].
 
 pub mod autoscoper;
 pub mod camera;
@@ -10,6 +12,7 @@ pub mod camera_files;
 pub mod camera_input;
 pub mod detector_corners;
 pub mod export;
+pub mod failure;
 pub mod mesh_text;
 pub mod reference_beads;
 pub mod volume;
