@@ -6,55 +6,22 @@
 
 use crate::common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use common::{ALLOW_MODELS, read_tiff, rsasim, truths};
+use common::{exported, numbers, read_tiff, rsasim, truths};
 use rsasim::output::Truth;
 
-/// Runs `scenario` into a temporary folder and exports it for `to` with `extra` options.
-fn export(scenario: &str, to: &str, extra: &[&str]) -> (tempfile::TempDir, PathBuf, PathBuf) {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("out");
-    let o = rsasim(
-        &[
-            &[scenario, "--out", out.to_str().unwrap()],
-            &ALLOW_MODELS[..],
-        ]
-        .concat(),
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let dest = tmp.path().join(to);
-    let o = rsasim(
-        &[
-            &[
-                "export",
-                out.to_str().unwrap(),
-                "--to",
-                to,
-                "--dir",
-                dest.to_str().unwrap(),
-            ],
-            extra,
-        ]
-        .concat(),
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    (tmp, out, dest)
-}
-
-/// Numbers of a comma- or space-separated line.
-fn numbers(line: &str) -> Vec<f64> {
-    line.split([',', ' '])
-        .filter(|v| !v.trim().is_empty())
-        .map(|v| v.trim().parse().unwrap())
+/// Numbers of a space-separated `.cfg` value (`VoxelSize`, `VolumeFlip`, the offset comment).
+fn words(value: &str) -> Vec<f64> {
+    value
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
         .collect()
 }
 
-/// A MayaCam 2.0 camera read by line number as Autoscoper's `Camera::loadMayaCam2` and XMALab's
-/// `ExternalCalibrationFrame` read it (line 2 the size, width first; 5–7 K; 10–12 R; 15–17 t).
+/// A MayaCam 2.0 camera read as the clients read it ([`common::read_mayacam`]: Autoscoper's
+/// `Camera::loadMayaCam2` and XMALab's `ExternalCalibrationFrame` read the same lines).
 /// `single`: every value rounded to a 32-bit float first, as XMALab's `fscanf("%f")` does.
 struct MayaCam {
     size: [f64; 2],
@@ -64,21 +31,13 @@ struct MayaCam {
 }
 
 fn mayacam(file: &Path, single: bool) -> MayaCam {
-    let text = std::fs::read_to_string(file).unwrap();
-    let l: Vec<&str> = text.lines().collect();
-    let n = |line: usize| -> Vec<f64> {
-        numbers(l[line - 1])
-            .into_iter()
-            .map(|v| if single { f64::from(v as f32) } else { v })
-            .collect()
-    };
-    let m3 = |first: usize| [0, 1, 2].map(|i| <[f64; 3]>::try_from(n(first + i)).unwrap());
-    let s = n(2);
+    let (size, k, r, t) = common::read_mayacam(&std::fs::read_to_string(file).unwrap());
+    let f = |v: f64| if single { f64::from(v as f32) } else { v };
     MayaCam {
-        size: [s[0], s[1]],
-        k: m3(5),
-        r: m3(10),
-        t: [n(15)[0], n(16)[0], n(17)[0]],
+        size: size.map(f),
+        k: k.map(|row| row.map(f)),
+        r: r.map(|row| row.map(f)),
+        t: t.map(f),
     }
 }
 
@@ -222,7 +181,7 @@ fn apply(m: &[f64], p: [f64; 3]) -> [f64; 3] {
 
 #[test]
 fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in_place() {
-    let (_tmp, out, dest) = export("scenarios/golden/small_biplanar.toml", "autoscoper", &[]);
+    let (_tmp, out, dest) = exported("scenarios/golden/small_biplanar.toml", "autoscoper", &[]);
     let mut trials = 0;
     let mut worst_px: f64 = 0.0;
     for (_, truth) in truths(&out) {
@@ -275,13 +234,13 @@ fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in
                     .unwrap()
                     .to_string_lossy()
                     .to_string();
-                let s = numbers(sizes[i]);
+                let s = words(sizes[i]);
                 assert_eq!(s.len(), 3);
-                let flip = numbers(flips[i]);
+                let flip = words(flips[i]);
                 let offset: Vec<f64> = text
                     .lines()
                     .find_map(|l| l.strip_prefix(&format!("#   {phantom}: offset ")))
-                    .map(numbers)
+                    .map(words)
                     .unwrap();
                 let tra = std::fs::read_to_string(
                     run.join(format!("truth/{}_{phantom}.tra", exposure.id)),
@@ -436,7 +395,7 @@ fn bead_against_background(dest: &Path, truth: &Truth) -> (u16, u16) {
 
 #[test]
 fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() {
-    let (_tmp, out, dest) = export("tests/scenarios/xmalab_cube.toml", "xmalab", &[]);
+    let (_tmp, out, dest) = exported("tests/scenarios/xmalab_cube.toml", "xmalab", &[]);
     for (_, truth) in truths(&out) {
         let cal = dest.join(&truth.run.id).join("calibration");
         let spec = std::fs::read_to_string(cal.join("frame_specification.csv")).unwrap();
@@ -508,7 +467,7 @@ fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() 
         assert!(bead < background, "bead {bead}, background {background}");
     }
     // --dense-matter bright: bright beads, and the header says "white".
-    let (_tmp2, out2, dest2) = export(
+    let (_tmp2, out2, dest2) = exported(
         "tests/scenarios/xmalab_cube.toml",
         "xmalab",
         &["--dense-matter", "bright"],
@@ -618,4 +577,39 @@ fn xmalab_reads_the_cameras_as_32_bit_floats_within_1e_4_px_at_1440() {
     eprintln!("{n} bead images through 32-bit cameras: worst {worst:e} px");
     assert!(n > 200);
     assert!(worst <= 1e-4, "{worst} px");
+}
+
+#[test]
+fn a_voxel_size_that_gives_no_volume_is_refused_before_anything_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    common::run_scenario("scenarios/golden/small_biplanar.toml", &out, &[]);
+    let dest = tmp.path().join("a");
+    for (voxel, says) in [
+        ("0", "not positive and finite"),
+        ("NaN", "not positive and finite"),
+        ("0.001", "more than 268435456"),
+        ("1000", "no voxel centre"),
+    ] {
+        let o = rsasim(
+            &[
+                "export",
+                out.to_str().unwrap(),
+                "--to",
+                "autoscoper",
+                "--dir",
+                dest.to_str().unwrap(),
+                "--voxel-mm",
+                voxel,
+            ],
+            &[],
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{voxel}: {err}");
+        assert!(
+            err.contains("scenario.toml") && err.contains("phantom `femur`") && err.contains(says),
+            "{voxel}: {err}"
+        );
+        assert!(!dest.exists(), "{voxel}: nothing written");
+    }
 }

@@ -13,25 +13,9 @@ use rsasim::evaluate::table::{Report, Table};
 use rsasim::evaluate::{MeasuredSource, Options, evaluate};
 use rsasim::output::Truth;
 
-/// The golden small biplanar scenario (240² px, 4 runs) and its XMALab export, written once.
+/// The golden small biplanar scenario (240² px, 4 runs) and its export for `to`.
 fn exported(to: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("sb");
-    run_scenario("scenarios/golden/small_biplanar.toml", &out, &[]);
-    let dest = tmp.path().join(to);
-    let o = rsasim(
-        &[
-            "export",
-            out.to_str().unwrap(),
-            "--to",
-            to,
-            "--dir",
-            dest.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    (tmp, out, dest)
+    common::exported("scenarios/golden/small_biplanar.toml", to, &[])
 }
 
 /// Reads a MayaCam 2.0 file ([`common::read_mayacam`]): (W, H, K, R, t).

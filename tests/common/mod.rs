@@ -162,6 +162,30 @@ pub fn rehash(out: &Path, rels: &[&str]) {
     });
 }
 
+/// Runs `scenario` into `<tmp>/out` and exports it with `rsasim export --to <to> --dir <tmp>/<to>`
+/// and the `extra` options: (the temporary folder, the output, the export).
+pub fn exported(scenario: &str, to: &str, extra: &[&str]) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    run_scenario(scenario, &out, &[]);
+    let dest = tmp.path().join(to);
+    let args = [
+        &[
+            "export",
+            out.to_str().unwrap(),
+            "--to",
+            to,
+            "--dir",
+            dest.to_str().unwrap(),
+        ],
+        extra,
+    ]
+    .concat();
+    let o = rsasim(&args, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (tmp, out, dest)
+}
+
 /// Numbers of a comma-separated line.
 pub fn numbers(line: &str) -> Vec<f64> {
     line.split(',').map(|v| v.trim().parse().unwrap()).collect()

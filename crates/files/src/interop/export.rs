@@ -98,6 +98,12 @@ pub enum CalibrationObject {
     Omit,
 }
 
+/// Whether the export writes `I_max − value`: where the run's images show dense matter other
+/// than `dense_matter` asks.
+fn inverts(setup: &Setup, dense_matter: DenseMatter) -> bool {
+    dense_matter_bright_in(setup) != (dense_matter == DenseMatter::Bright)
+}
+
 /// Options of `rsasim export`.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -276,7 +282,12 @@ pub fn export(
     }
     check_images(&runs)?;
     let volumes = if options.target == Target::Autoscoper {
-        model_volumes(&runs, &setup, options.voxel_mm)?
+        model_volumes(
+            &runs,
+            &setup,
+            options.voxel_mm,
+            &truth_root.join("scenario.toml"),
+        )?
     } else {
         Vec::new()
     };
@@ -552,6 +563,7 @@ fn model_volumes(
     runs: &[RunExport],
     setup: &Setup,
     voxel_mm: f64,
+    scenario_file: &Path,
 ) -> Result<Vec<ModelVolume>, Error> {
     let mut ids: Vec<&String> = runs
         .iter()
@@ -564,7 +576,6 @@ fn model_volumes(
     let mut out = Vec::new();
     for id in ids {
         let mesh = &setup.meshes[id];
-        let scenario_file = Path::new("scenario.toml");
         let refuse = |why: String| {
             Error::Input(vec![Diagnostic::file_error(scenario_file, format!("phantom `{id}`: {why}"))
                 .with_help("give --voxel-mm a size that keeps the model's volume within 2^28 voxels (e.g. 0.5 or 1)")])
@@ -710,7 +721,6 @@ fn reference_views(
             })
             .collect();
         views.push(reference_beads::View {
-            detector: image.detector.clone(),
             source_mm,
             camera,
             beads: in_view,
@@ -746,7 +756,7 @@ fn write_run(
     let id = &run.truth.run.id;
     let xmalab = options.target == Target::Xmalab;
     let dense_bright = options.dense_matter == DenseMatter::Bright;
-    let invert = dense_matter_bright_in(setup) != dense_bright;
+    let invert = inverts(setup, options.dense_matter);
     for (det, cam) in &run.cameras {
         write(
             &format!("{id}/calibration/{det}_MayaCam.txt"),
@@ -888,7 +898,7 @@ fn write_run(
 
 fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> String {
     let dense_bright = options.dense_matter == DenseMatter::Bright;
-    let invert = dense_matter_bright_in(setup) != dense_bright;
+    let invert = inverts(setup, options.dense_matter);
     let calibration = match &options.calibration_from {
         None => "the TRUE calibration (the exact source and detector poses of truth.json): the \
                  exam's known calibration"

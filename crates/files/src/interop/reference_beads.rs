@@ -49,8 +49,6 @@ pub struct BoxBead {
 /// One calibration view: a camera and every bead of its exposure.
 #[derive(Debug, Clone)]
 pub struct View {
-    /// The detector id, for messages.
-    pub detector: String,
     /// The source (focus), mm.
     pub source_mm: DVec3,
     /// The camera of the exported (flipped) image.
@@ -300,7 +298,6 @@ mod tests {
         };
         let source = DVec3::new(0.0, 0.0, 1000.0);
         View {
-            detector: "d".into(),
             source_mm: source,
             camera: PinholeCamera::of_beamline(source, &det).unwrap(),
             beads: beads
