@@ -275,11 +275,15 @@ pub struct EvaluateArgs {
     /// (e.g. measured-rsasim-dlt-markers.json); several names are an error listing them. A
     /// name ending in .csv is read as XMALab's export of that run's trial: rigid-body
     /// transformations (bodies named after phantoms), 3D points or 2D points (markers named
-    /// after beads; 2D points are triangulated with the exported true cameras).
+    /// after beads; 2D points are triangulated with the exported true cameras). A name ending
+    /// in .tra is read as Autoscoper's tracking of that run's trial: <exposure>_<phantom>.tra
+    /// (one volume) or <exposure>.tra (every volume of the trial), matrices in row or column
+    /// order or xyzypr.
     #[arg(long, value_name = "FILE_NAME", conflicts_with = "csv")]
     pub measured: Option<String>,
     /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
-    /// the folder `rsasim export` wrote, where XMALab's exports were saved.
+    /// the folder `rsasim export` wrote, where XMALab's exports or Autoscoper's tracking were
+    /// saved.
     #[arg(long, value_name = "DIR", requires = "measured")]
     pub results_in: Option<PathBuf>,
     /// XMALab's 2D points: the y axis they were exported with, `down` (XMALab's default) or

@@ -650,3 +650,91 @@ fn a_measured_calibration_is_exported_instead_of_the_truth() {
         "the measured source equals the true one"
     );
 }
+
+/// The values of a `.tra` line (comma- or space-separated).
+fn tra_values(text: &str) -> Vec<f64> {
+    text.split([',', ' '])
+        .filter(|t| !t.trim().is_empty())
+        .map(|t| t.trim().parse().unwrap())
+        .collect()
+}
+
+/// `x, y, z, yaw, pitch, roll` of a row-order world ← volume matrix, by hand: R = Rz(yaw)·
+/// Ry(pitch)·Rx(roll) has R20 = −sin(pitch), R21 = cos(pitch)·sin(roll), R22 = cos(pitch)·cos(roll),
+/// R10 = sin(yaw)·cos(pitch), R00 = cos(yaw)·cos(pitch).
+fn xyzypr(m: &[f64]) -> [f64; 6] {
+    [
+        m[3],
+        m[7],
+        m[11],
+        m[4].atan2(m[0]).to_degrees(),
+        (-m[8]).asin().to_degrees(),
+        m[9].atan2(m[10]).to_degrees(),
+    ]
+}
+
+#[test]
+fn autoscoper_tracking_results_give_the_residuals_put_into_them() {
+    // The exported truth .tra is what a perfect tracking saves; moved by OFFSET in the world it is
+    // a tracking whose every pose is off by OFFSET.
+    let (_tmp, out, dest) = common::exported("tests/scenarios/evaluate.toml", "autoscoper", &[]);
+    let moved = |run: &Path| -> Vec<f64> {
+        let mut m =
+            tra_values(&std::fs::read_to_string(run.join("truth/model_femur.tra")).unwrap());
+        for (k, o) in OFFSET.iter().enumerate() {
+            m[4 * k + 3] += o;
+        }
+        m
+    };
+    let join = |v: &[f64], sep: &str| v.iter().map(|x| num(*x)).collect::<Vec<_>>().join(sep);
+    let variants: [(&str, &dyn Fn(&[f64]) -> String); 4] = [
+        ("model_femur.tra", &|m| join(m, ",") + "\n"),
+        // Column order, space-separated.
+        ("model_femur.tra", &|m| {
+            let col: Vec<f64> = (0..16).map(|k| m[(k % 4) * 4 + k / 4]).collect();
+            join(&col, " ") + "\n"
+        }),
+        ("model_femur.tra", &|m| join(&xyzypr(m), ",") + "\n"),
+        // All volumes of trial `model` (only femur), named after the trial.
+        ("model.tra", &|m| join(m, ",") + "\n"),
+    ];
+    for (i, (name, make)) in variants.iter().enumerate() {
+        for (_, truth) in truths(&out) {
+            let run = dest.join(&truth.run.id);
+            std::fs::write(run.join(name), make(&moved(&run))).unwrap();
+        }
+        let report = evaluate_xmalab(&out, &dest, name, Default::default());
+        assert_offset_residuals(&report, &format!("variant {i}: {name}"));
+    }
+    // Bad files: the run folder, line and what would be valid.
+    let first = truths(&out).remove(0).1.run.id;
+    let bad = |name: &str, text: &str| {
+        std::fs::write(dest.join(&first).join(name), text).unwrap();
+        evaluate_refused(&out, &dest, name, &[])
+    };
+    let e = bad("femur.tra", "1,2,3,0,0,0\n");
+    assert!(
+        e.contains("names no trial") && e.contains("model_femur.tra"),
+        "{e}"
+    );
+    let e = bad("model_femur.tra", "1,2,3,0,0\n");
+    assert!(e.contains("5 values for 1 volume(s)"), "{e}");
+    let e = bad("model_femur.tra", "1,2,3,0,0,0\n1,2,3,0,0,0\n");
+    assert!(e.contains("2 frame(s)") && e.contains(":2"), "{e}");
+    let e = bad("model_femur.tra", "NaN,2,3,0,0,0\n");
+    assert!(e.contains("NaN in some values"), "{e}");
+    let e = bad("model_femur.tra", "1,2,3,0,0,x\n");
+    assert!(e.contains("`x` is not a finite number"), "{e}");
+    // Untracked (NaN everywhere, as C++ prints it): the run is excluded, not an error.
+    std::fs::write(
+        dest.join(&first).join("model_femur.tra"),
+        "-nan -nan -nan nan nan nan\n",
+    )
+    .unwrap();
+    for (_, truth) in truths(&out).into_iter().skip(1) {
+        let run = dest.join(&truth.run.id);
+        std::fs::write(run.join("model_femur.tra"), join(&moved(&run), ",") + "\n").unwrap();
+    }
+    let o = evaluate_cli(&out, &dest, "model_femur.tra", &["--format", "csv"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -45,7 +45,8 @@ pub enum MeasuredSource {
     /// several names are an error listing them.
     Auto,
     /// A file of this name in every run folder. A name ending in `.csv` is read as XMALab's
-    /// export of the run's trial ([`crate::interop::xmalab::read_export`]).
+    /// export of the run's trial ([`crate::interop::xmalab::read_export`]), one ending in `.tra`
+    /// as Autoscoper's tracking of it ([`crate::interop::autoscoper_tracking::read_tracking`]).
     PerRun(String),
     /// A file of this name in `dir/<run id>/` for every run (e.g. the folder `rsasim export`
     /// wrote, where XMALab's exports were saved).
@@ -129,14 +130,32 @@ pub fn evaluate_with_truth(
         MeasuredSource::PerRun(name) | MeasuredSource::PerRunIn { name, .. } => {
             let mut found = BTreeMap::new();
             let mut errors = Vec::new();
+            // Autoscoper's poses are of its volumes: the volume frame's offset in each mesh
+            // phantom's frame comes from the meshes of the output (phantoms/).
+            let volume_offsets: BTreeMap<String, glam::DVec3> =
+                if name.to_ascii_lowercase().ends_with(".tra") {
+                    crate::output::exam::load_setup(truth_root)?
+                        .meshes
+                        .iter()
+                        .map(|(id, m)| (id.clone(), crate::interop::volume::frame_offset_mm(m)))
+                        .collect()
+                } else {
+                    BTreeMap::new()
+                };
             for t in &truths {
                 let file = t.dir.join(name);
                 if !file.exists() {
                     continue;
                 }
-                let loaded = if name.to_ascii_lowercase().ends_with(".csv") {
+                let lower = name.to_ascii_lowercase();
+                let loaded = if lower.ends_with(".csv") {
                     crate::interop::xmalab::read_export(&file, &t.truth, options.xmalab_2d)
                         .and_then(|m| check_measured(&file, "", m, &t.truth))
+                } else if lower.ends_with(".tra") {
+                    crate::interop::autoscoper_tracking::read_tracking(&file, &t.truth, &|p| {
+                        volume_offsets.get(p).copied()
+                    })
+                    .and_then(|m| check_measured(&file, "", m, &t.truth))
                 } else {
                     load_measured_json(&file, &t.truth)
                 };

@@ -3,10 +3,12 @@
 //! with the known calibration, images, calibration object, models), and `rsasim evaluate` reads
 //! XMALab's exports back ([`xmalab::read_export`]); `rsasim camera` writes one beamline's camera
 //! in MayaCam, DLT-11 and OpenCV form ([`camera_input`], [`camera_files`]). The export's
-//! Autoscoper volumes and `.tra` truth are [`volume`]'s; XMALab's reference beads are chosen by
+//! Autoscoper volumes and `.tra` truth are [`volume`]'s, and Autoscoper's tracking results are read
+//! back by [`autoscoper_tracking`]; XMALab's reference beads are chosen by
 //! [`reference_beads`].
 
 pub mod autoscoper;
+pub mod autoscoper_tracking;
 pub mod camera;
 pub mod camera_files;
 pub mod camera_input;
