@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::{exported, numbers, read_tiff, rsasim, truths};
@@ -179,9 +179,10 @@ fn apply(m: &[f64], p: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| m[4 * i] * p[0] + m[4 * i + 1] * p[1] + m[4 * i + 2] * p[2] + m[4 * i + 3])
 }
 
-#[test]
-fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in_place() {
-    let (_tmp, out, dest) = exported("scenarios/golden/small_biplanar.toml", "autoscoper", &[]);
+/// Every Autoscoper rule on an export of `out` in `dest`: each trial against `Trial::validate`,
+/// each volume placed by Autoscoper's formula and the truth `.tra`, beads through the `.tra` and
+/// the cameras, the volume's tags by libtiff. Returns the trials checked.
+fn check_autoscoper(out: &Path, dest: &Path) -> usize {
     let mut trials = 0;
     let mut worst_px: f64 = 0.0;
     for (_, truth) in truths(&out) {
@@ -190,7 +191,15 @@ fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in
             let cfg_path = run.join(format!("{}.cfg", exposure.id));
             if !cfg_path.exists() {
                 // Only exposures with a model get a trial: Autoscoper needs a volume.
-                assert!(!exposure.phantoms.iter().any(|p| p == "femur"));
+                assert!(
+                    !exposure
+                        .phantoms
+                        .iter()
+                        .any(|p| dest.join(format!("volumes/{p}.tif")).exists()),
+                    "{}: no trial for exposure {}",
+                    truth.run.id,
+                    exposure.id
+                );
                 continue;
             }
             trials += 1;
@@ -346,15 +355,20 @@ fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in
         }
     }
     eprintln!("{trials} trials; worst bead reprojection through the .tra {worst_px:e} px");
-    assert!(trials >= 4);
     assert!(worst_px <= 1e-6, "{worst_px} px");
-    // libtiff (Autoscoper's reader) on the volume: one sample, 16 bits, unsigned, MinIsBlack,
+    // libtiff (Autoscoper's reader) on every volume: one sample, 16 bits, unsigned, MinIsBlack,
     // contiguous, a compression libtiff decodes (Volume::Volume, tiffImageRead).
-    if have_tiffinfo() {
-        let o = Command::new("tiffinfo")
-            .arg(dest.join("volumes/femur.tif"))
-            .output()
-            .unwrap();
+    let volumes: Vec<PathBuf> = std::fs::read_dir(dest.join("volumes"))
+        .unwrap()
+        .map(|f| f.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "tif"))
+        .collect();
+    assert!(!volumes.is_empty());
+    if !have_tiffinfo() {
+        return trials;
+    }
+    for volume in volumes {
+        let o = Command::new("tiffinfo").arg(&volume).output().unwrap();
         let info = String::from_utf8_lossy(&o.stdout);
         assert!(o.status.success(), "{info}");
         let dirs = info.matches("TIFF Directory at offset").count();
@@ -370,14 +384,35 @@ fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in
             assert_eq!(info.matches(needle).count(), n, "{needle}\n{info}");
         }
     }
+    trials
 }
 
-/// The bead at a truth pixel in an exported (flipped, 16-bit) image, against the image's median.
-fn bead_against_background(dest: &Path, truth: &Truth) -> (u16, u16) {
+#[test]
+fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in_place() {
+    let (_tmp, out, dest) = exported("scenarios/golden/small_biplanar.toml", "autoscoper", &[]);
+    assert!(check_autoscoper(&out, &dest) >= 4);
+}
+
+/// The box beads in the first exported (flipped, 16-bit) image of an exposure holding the box:
+/// the mean value at the centre pixels of those on the image and not over an implant, and the
+/// image's median.
+fn bead_against_background(dest: &Path, truth: &Truth) -> (f64, u16) {
+    let cal = truth
+        .run
+        .phantoms
+        .iter()
+        .find(|p| p.kind == "calibration_box")
+        .unwrap();
     let image = truth
         .images
         .iter()
-        .find(|im| im.exposure == "calibration")
+        .find(|im| {
+            truth
+                .run
+                .exposures
+                .iter()
+                .any(|e| e.id == im.exposure && e.phantoms.contains(&cal.id))
+        })
         .unwrap();
     let stem = format!("{}-{}", image.exposure, image.detector);
     let (w, h, px) = read_tiff(
@@ -385,28 +420,70 @@ fn bead_against_background(dest: &Path, truth: &Truth) -> (u16, u16) {
             .join(&truth.run.id)
             .join(format!("images/{stem}/{stem}.0001.tif")),
     );
-    let mk = image.markers.iter().find(|m| m.inside).unwrap();
     // Row v of rsasim's image is row H − 1 − v of the export.
-    let (i, j) = (mk.pixel[0] as usize, h as usize - 1 - mk.pixel[1] as usize);
+    let at: Vec<f64> = image
+        .markers
+        .iter()
+        .filter(|m| m.phantom == cal.id && m.inside && m.occluded != Some(true))
+        .map(|m| {
+            let (i, j) = (m.pixel[0] as usize, h as usize - 1 - m.pixel[1] as usize);
+            f64::from(px[j * w as usize + i])
+        })
+        .collect();
+    assert!(!at.is_empty());
     let mut sorted = px.clone();
     sorted.sort_unstable();
-    (px[j * w as usize + i], sorted[sorted.len() / 2])
+    (
+        at.iter().sum::<f64>() / at.len() as f64,
+        sorted[sorted.len() / 2],
+    )
 }
 
-#[test]
-fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() {
-    let (_tmp, out, dest) = exported("tests/scenarios/xmalab_cube.toml", "xmalab", &[]);
-    for (_, truth) in truths(&out) {
+/// Every XMALab rule on an export of `out` in `dest` (dense matter `bright` or dark): the
+/// calibration object where written (frame specification header and rows, references and their
+/// rule, through the cameras as XMALab reads them), its absence named in the export's README
+/// otherwise, and the beads' shade. Returns the runs with a calibration object.
+fn check_xmalab(out: &Path, dest: &Path, bright: bool) -> usize {
+    let readme = std::fs::read_to_string(dest.join("README.md")).unwrap();
+    let mut with_object = 0;
+    for (_, truth) in truths(out) {
+        // Beads dark on the exported images by default, bright when asked.
+        let (bead, background) = bead_against_background(dest, &truth);
+        assert_eq!(
+            bead > f64::from(background),
+            bright,
+            "{}: beads {bead}, background {background}",
+            truth.run.id
+        );
         let cal = dest.join(&truth.run.id).join("calibration");
+        if !cal.join("references.ref").exists() {
+            // Then no calibration object at all, and the README says why.
+            assert!(!cal.join("frame_specification.csv").exists());
+            assert!(
+                readme.contains(&format!(
+                    "  - run {}: no four reference beads",
+                    truth.run.id
+                )),
+                "{readme}"
+            );
+            continue;
+        }
+        with_object += 1;
         let spec = std::fs::read_to_string(cal.join("frame_specification.csv")).unwrap();
         let mut lines = spec.lines();
         // CalibrationObject::loadCoords: a header line; "white" in it switches to white blobs.
-        assert!(!lines.next().unwrap().contains("white"));
+        assert_eq!(lines.next().unwrap().contains("white"), bright);
         // Then `x,y,z` per bead, read as numbers separated by commas.
+        let box_phantom = truth
+            .run
+            .phantoms
+            .iter()
+            .find(|p| p.kind == "calibration_box")
+            .unwrap();
         let beads: Vec<[f64; 3]> = lines
             .map(|l| <[f64; 3]>::try_from(numbers(l)).unwrap())
             .collect();
-        assert_eq!(beads.len(), truth.run.phantoms[0].markers.len());
+        assert_eq!(beads.len(), box_phantom.markers.len());
         // The references (`%i %20[0-9a-zA-Z ]s`, 1-based), in a `.ref` file (the dialog's filter).
         let refs = std::fs::read_to_string(cal.join("references.ref")).unwrap();
         let chosen: Vec<usize> = refs
@@ -445,12 +522,22 @@ fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() 
         // reference on the image and at least 3 bead diameters from every other bead's image.
         for det in &truth.run.detectors {
             let cam = mayacam(&cal.join(format!("{}_MayaCam.txt", det.id)), true);
-            let bead_mm = truth.run.phantoms[0].markers[0].diameter_mm;
+            let bead_mm = box_phantom.markers[0].diameter_mm;
             let diameter_px = |x: [f64; 3]| cam.k[0][0] * bead_mm / cam.depth(x);
             for &r in &chosen {
                 let c = cam.project(beads[r]);
                 let own = diameter_px(beads[r]);
-                assert!(c[0] > 0.0 && c[1] > 0.0 && c[0] < cam.size[0] && c[1] < cam.size[1]);
+                // On the image, 3 of its diameters from the border (pixel centres at i, edges
+                // at i ± 0.5).
+                let m = 3.0 * own;
+                assert!(
+                    c[0] + 0.5 >= m * (1.0 - 1e-6)
+                        && c[1] + 0.5 >= m * (1.0 - 1e-6)
+                        && cam.size[0] - (c[0] + 0.5) >= m * (1.0 - 1e-6)
+                        && cam.size[1] - (c[1] + 0.5) >= m * (1.0 - 1e-6),
+                    "{}: reference {r} at {c:?}",
+                    det.id
+                );
                 for (o, b) in beads.iter().enumerate().filter(|(o, _)| *o != r) {
                     let q = cam.project(*b);
                     let apart = (q[0] - c[0]).hypot(q[1] - c[1]);
@@ -462,26 +549,21 @@ fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() 
                 }
             }
         }
-        // Beads dark on the exported images (binary mode has them bright).
-        let (bead, background) = bead_against_background(&dest, &truth);
-        assert!(bead < background, "bead {bead}, background {background}");
     }
+    with_object
+}
+
+#[test]
+fn xmalab_calibration_object_follows_xmalabs_reading_rules_and_beads_are_dark() {
+    let (_tmp, out, dest) = exported("tests/scenarios/xmalab_cube.toml", "xmalab", &[]);
+    assert_eq!(check_xmalab(&out, &dest, false), 4);
     // --dense-matter bright: bright beads, and the header says "white".
     let (_tmp2, out2, dest2) = exported(
         "tests/scenarios/xmalab_cube.toml",
         "xmalab",
         &["--dense-matter", "bright"],
     );
-    let (_, truth) = truths(&out2).remove(0);
-    let spec = std::fs::read_to_string(
-        dest2
-            .join(&truth.run.id)
-            .join("calibration/frame_specification.csv"),
-    )
-    .unwrap();
-    assert!(spec.lines().next().unwrap().contains("white"));
-    let (bead, background) = bead_against_background(&dest2, &truth);
-    assert!(bead > background, "bead {bead}, background {background}");
+    assert_eq!(check_xmalab(&out2, &dest2, true), 4);
 }
 
 #[test]
@@ -520,63 +602,98 @@ fn a_box_with_no_four_references_is_named_and_required_makes_it_an_error() {
     assert!(dest.join("n0-r00/calibration/det1_MayaCam.txt").exists());
 }
 
-#[test]
-fn xmalab_reads_the_cameras_as_32_bit_floats_within_1e_4_px_at_1440() {
-    // The paper's geometry at 1440², one run.
-    let tmp = tempfile::tempdir().unwrap();
-    let out = tmp.path().join("out");
-    let o = rsasim(
-        &[
-            "scenarios/biplanar.toml",
-            "--shard",
-            "0/100",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let shard = out.join("shard-00-of-100");
-    let dest = tmp.path().join("x");
-    let o = rsasim(
-        &[
-            "export",
-            shard.to_str().unwrap(),
-            "--to",
-            "xmalab",
-            "--dir",
-            dest.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (_, truth) = truths(&shard).remove(0);
+/// Every bead image of every run of `out` through the cameras of the export `dest` as XMALab
+/// reads them (32-bit floats): (bead images, worst distance to the truth pixel in px).
+fn through_float32_cameras(out: &Path, dest: &Path) -> (usize, f64) {
     let mut worst: f64 = 0.0;
     let mut n = 0;
-    for image in &truth.images {
-        let det = truth
+    for (_, truth) in truths(out) {
+        for image in &truth.images {
+            let cam = mayacam(
+                &dest
+                    .join(&truth.run.id)
+                    .join(format!("calibration/{}_MayaCam.txt", image.detector)),
+                true,
+            );
+            for mk in image.markers.iter().filter(|m| m.inside) {
+                let got = cam.project(bead_world(&truth, &mk.phantom, &mk.id));
+                let want = opencv(mk.pixel, cam.size[1]);
+                worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
+                n += 1;
+            }
+        }
+    }
+    (n, worst)
+}
+
+/// One run of every shipped scenario (`--shard 0/N` with N above its runs), exported for both
+/// programs, passes every check above. The cameras read as 32-bit floats stay within 1e-4 px on
+/// the paper's 1440² biplanar set-up; the uniplanar ones (tubes 20° off the detector normal, the
+/// principal point far off the image, f ≈ 4700 px) within 1e-3 px: a float's rounding of a
+/// rotation entry near 1 (6e-8) times the focal length is already 3e-4 px there.
+#[test]
+fn every_shipped_scenario_exports_as_the_clients_read() {
+    let mut scenarios: Vec<PathBuf> = std::fs::read_dir(common::root().join("scenarios"))
+        .unwrap()
+        .map(|f| f.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    scenarios.sort();
+    assert!(scenarios.len() >= 7, "{scenarios:?}");
+    for scenario in scenarios {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        let o = rsasim(
+            &[
+                scenario.to_str().unwrap(),
+                "--shard",
+                "0/100000",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let shard = std::fs::read_dir(&out)
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        let export = |to: &str| {
+            let dest = tmp.path().join(to);
+            let o = rsasim(
+                &[
+                    "export",
+                    shard.to_str().unwrap(),
+                    "--to",
+                    to,
+                    "--dir",
+                    dest.to_str().unwrap(),
+                ],
+                &[],
+            );
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            dest
+        };
+        let xma = export("xmalab");
+        let cube = check_xmalab(&shard, &xma, false);
+        let (n, worst) = through_float32_cameras(&shard, &xma);
+        let trials = check_autoscoper(&shard, &export("autoscoper"));
+        eprintln!(
+            "{}: XMALab calibration object in {cube} run(s); {n} bead images through 32-bit cameras, worst {worst:e} px; {trials} Autoscoper trial(s)",
+            scenario.file_name().unwrap().to_string_lossy()
+        );
+        assert!(n > 0 && trials > 0);
+        let square_1440 = truths(&shard)[0]
+            .1
             .run
             .detectors
             .iter()
-            .find(|d| d.id == image.detector)
-            .unwrap();
-        assert_eq!(det.pixels, [1440, 1440]);
-        let cam = mayacam(
-            &dest
-                .join(&truth.run.id)
-                .join(format!("calibration/{}_MayaCam.txt", det.id)),
-            true,
-        );
-        for mk in image.markers.iter().filter(|m| m.inside) {
-            let got = cam.project(bead_world(&truth, &mk.phantom, &mk.id));
-            let want = opencv(mk.pixel, 1440.0);
-            worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
-            n += 1;
-        }
+            .all(|d| d.pixels == [1440, 1440]);
+        let bound = if square_1440 { 1e-4 } else { 1e-3 };
+        assert!(worst <= bound, "{worst} px (bound {bound})");
     }
-    eprintln!("{n} bead images through 32-bit cameras: worst {worst:e} px");
-    assert!(n > 200);
-    assert!(worst <= 1e-4, "{worst} px");
 }
 
 #[test]
