@@ -11,10 +11,13 @@
 //!    (half-size `⌊r/√2⌋`, at least 1) minus the mean of a square ring around it (between
 //!    half-sizes `⌈r⌉ + 2` and `⌈r⌉ + 4`, clear of the bead and of its blur), by integral images.
 //! 3. **Candidates**: local maxima of the response over the excluded box, at least
-//!    [`MIN_SNR`] times the response's noise (tile noise × √(1/N_box + 1/N_ring)).
-//! 4. **Shape**: the pixels above half the candidate's peak contrast connected to it must stay
-//!    inside the window (a plate's edge or a bone ridge runs out of it) — their count is the
-//!    blob's area, which the matching then compares with a bead's.
+//!    [`MIN_SNR`] times the response's noise: tile noise × √(1/N_box + 1/N_ring) for white
+//!    noise, times the image's correlation factor (the median over tiles of the response's own
+//!    robust spread against that prediction, at least 1), which a detector PSF raises.
+//! 4. **Shape**: the pixels above half the candidate's peak absorbed fraction
+//!    (`1 − S/S_background`, in which blur is linear) connected to it must stay inside the
+//!    window (a plate's edge or a bone ridge runs out of it) — their count is the blob's area,
+//!    which the matching then compares with a bead's.
 //! 5. **Metal**: a candidate whose window touches the metal shadow (a large clipped component,
 //!    [`metal_mask`], and in an image of a metal implant its dense shadow, clipped or not,
 //!    [`implant_metal_mask`]) is not a bead: its centre cannot be measured. It is dropped, so the bead
@@ -222,8 +225,8 @@ pub fn find_beads_by(img: &Density, radius_px: f64, metal: &[bool], how: Centre)
     let n_in = ((2 * s.inner + 1) * (2 * s.inner + 1)) as f64;
     let n_ring = ((2 * s.outer + 1).pow(2) - (2 * s.clear + 1).pow(2)) as f64;
     let noise_factor = (1.0 / n_in + 1.0 / n_ring).sqrt();
-    // Matched filter response, divided by its noise, on every pixel whose ring fits.
-    let mut snr = vec![0.0f64; w * h];
+    // Matched filter response on every pixel whose ring fits.
+    let mut response = vec![0.0f64; w * h];
     let (b, a, c) = (s.outer, s.inner, s.clear);
     for j in b..h - b {
         for i in b..w - b {
@@ -231,8 +234,38 @@ pub fn find_beads_by(img: &Density, radius_px: f64, metal: &[bool], how: Centre)
             let outer = integral.sum(i - b, j - b, i + b + 1, j + b + 1);
             let clear = integral.sum(i - c, j - c, i + c + 1, j + c + 1);
             let ring = (outer - clear) / n_ring;
-            let sd = noise[(j / TILE) * tiles_x + i / TILE] * noise_factor;
-            snr[j * w + i] = (inner - ring) / sd;
+            response[j * w + i] = inner - ring;
+        }
+    }
+    // The response's noise per tile: what white pixel noise would give, times the image's
+    // correlation factor. A detector PSF correlates neighbouring pixels: their differences then
+    // understate the noise, while box means average it away less than 1/√N, so white-noise
+    // arithmetic alone lets noise peaks through by the thousand. The factor is the median over
+    // tiles of the response's own robust spread against the white-noise prediction (at least 1):
+    // one number for the image, as the blur is, so a tile crowded with beads or plate edges does
+    // not raise its own threshold.
+    let spread = response_spread(&response, w, h, b, tiles_x);
+    let mut ratios: Vec<f64> = spread
+        .iter()
+        .zip(&noise)
+        .filter(|(s, _)| **s > 0.0)
+        .map(|(s, n)| s / (n * noise_factor))
+        .filter(|r| r.is_finite())
+        .collect();
+    let correlation = if ratios.is_empty() {
+        1.0
+    } else {
+        let mid = ratios.len() / 2;
+        ratios
+            .select_nth_unstable_by(mid, f64::total_cmp)
+            .1
+            .max(1.0)
+    };
+    let mut snr = vec![0.0f64; w * h];
+    for j in b..h - b {
+        for i in b..w - b {
+            let sd = noise[(j / TILE) * tiles_x + i / TILE] * noise_factor * correlation;
+            snr[j * w + i] = response[j * w + i] / sd;
         }
     }
     let mut out = Vec::new();
@@ -250,6 +283,44 @@ pub fn find_beads_by(img: &Density, radius_px: f64, metal: &[bool], how: Centre)
             if let Some(blob) = measure(img, i, j, s, sd, how) {
                 out.push(blob);
             }
+        }
+    }
+    out
+}
+
+/// The robust standard deviation (1.4826 × the median absolute deviation from the median) of the
+/// matched filter's response over each tile's pixels whose ring fits (`margin` from the border);
+/// 0 for a tile without such pixels. Beads and edges are a minority of a tile's pixels, so they
+/// do not move it.
+fn response_spread(
+    response: &[f64],
+    w: usize,
+    h: usize,
+    margin: usize,
+    tiles_x: usize,
+) -> Vec<f64> {
+    let tiles_y = h.div_ceil(TILE);
+    let mut out = Vec::with_capacity(tiles_x * tiles_y);
+    let mut values = Vec::with_capacity(TILE * TILE);
+    for ty in 0..tiles_y {
+        for tx in 0..tiles_x {
+            values.clear();
+            for j in (ty * TILE).max(margin)..((ty + 1) * TILE).min(h - margin) {
+                for i in (tx * TILE).max(margin)..((tx + 1) * TILE).min(w - margin) {
+                    values.push(response[j * w + i]);
+                }
+            }
+            if values.is_empty() {
+                out.push(0.0);
+                continue;
+            }
+            let mid = values.len() / 2;
+            let median = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
+            for v in &mut values {
+                *v = (*v - median).abs();
+            }
+            let mad = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
+            out.push(1.482_602_2 * mad);
         }
     }
     out
@@ -327,6 +398,12 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
         img.at(x, y)
             - (plane[0] + plane[1] * (x as f64 - i as f64) + plane[2] * (y as f64 - j as f64))
     };
+    // The fraction of the background's photons the bead absorbs, `1 − S/S_background`: blur is
+    // linear in it, so its half-maximum region keeps a bead's area under a detector PSF. (The
+    // attenuation's own half maximum shrinks: blurring transmission and then taking the
+    // logarithm sharpens the peak; a 1 mm tantalum bead under a 0.5 px PSF keeps 6 of its
+    // 15 pixels.)
+    let absorbed = |x: usize, y: usize| 1.0 - (-excess(x, y)).exp();
     let c = s.clear;
     // Half-maximum region connected to the peak, inside the cleared box.
     let (x0, y0) = (i - c, j - c);
@@ -335,7 +412,7 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
     for y in y0..y0 + side {
         for x in x0..x0 + side {
             if (x as i64 - i as i64).abs() <= 1 && (y as i64 - j as i64).abs() <= 1 {
-                peak = peak.max(excess(x, y));
+                peak = peak.max(absorbed(x, y));
             }
         }
     }
@@ -370,13 +447,13 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
             let (lx, ly) = (nx - x0 as i64, ny - y0 as i64);
             if lx < 0 || ly < 0 || lx >= side as i64 || ly >= side as i64 {
                 // The region reaches the window's edge: a ridge or an edge, not a bead.
-                if excess(nx as usize, ny as usize) >= half {
+                if absorbed(nx as usize, ny as usize) >= half {
                     return None;
                 }
                 continue;
             }
             let k = ly as usize * side + lx as usize;
-            if !inside[k] && excess(nx as usize, ny as usize) >= half {
+            if !inside[k] && absorbed(nx as usize, ny as usize) >= half {
                 inside[k] = true;
                 stack.push((nx as usize, ny as usize));
             }
