@@ -1,0 +1,141 @@
+#!/usr/bin/env python3
+"""Controlled experiment for the reference program's biases on realistic images (issue 32).
+
+Runs `scenarios/biplanar_realistic.toml` at exposure x1 with each unsharpness option switched on
+alone, then all together (as `biplanar_realistic_blurred.toml` has them), reconstructs every run
+with `rsasim reconstruct` (DLT calibration, markers), and prints per variant, over runs and both
+beamlines:
+
+  - the source depth error: the measured source minus the true one, along the line from the true
+    detector centre to the true source (mm; negative: the source measured nearer the detector);
+  - the lateral source error (mm, the rest of the error vector);
+  - the femur's position error (mm) and the box beads matched per view.
+
+Every variant shares the base scenario's seed, so runs compare draw by draw.
+
+Usage: bench/bias.py [--runs N] [--bin PATH] [--variants a,b,...]
+Prints a Markdown table stamped with commit, machine and date.
+"""
+
+import argparse
+import json
+import math
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+# What each variant adds to [imaging] and [imaging.detector] of biplanar_realistic.toml: the
+# blurred scenario's settings, one at a time.
+SPOT = 'focal_spot = { size_mm = 1.2, profile = "uniform", samples = 3 }'
+SPOT_HEEL = ('focal_spot = { size_mm = 1.2, profile = "uniform", samples = 3, '
+             'heel_percent_per_100_mm = 10.0, anode_direction = "-c" }')
+VARIANTS = {
+    "sharp": ([], []),
+    "area": (["pixel_samples = 2"], []),
+    "spot": ([SPOT], []),
+    "spot+heel": ([SPOT_HEEL], []),
+    "psf": ([], ["psf = { sigma_mm = 0.15 }"]),
+    "scatter": ([], ["scatter = { ratio = 0.2, sigma_mm = 40.0 }"]),
+    "noise": ([], ["electronic_noise_dn = 2.0"]),
+    "all": (["pixel_samples = 2", SPOT_HEEL],
+            ["psf = { sigma_mm = 0.15 }", "scatter = { ratio = 0.2, sigma_mm = 40.0 }",
+             "electronic_noise_dn = 2.0"]),
+}
+
+
+def scenario_text(runs, imaging, detector):
+    text = (ROOT / "scenarios/biplanar_realistic.toml").read_text()
+    text = text.replace('file = "models/', f'file = "{ROOT}/scenarios/models/')
+    text = text.replace("exposure_levels = [2.0, 1.0, 0.5, 0.25, 0.125]", "exposure_levels = [1.0]")
+    text = text.replace("runs_per_level = 20", f"runs_per_level = {runs}")
+    text = text.replace("mas = 10.0", "\n".join(["mas = 10.0"] + imaging), 1)
+    text = text.replace('polarity = "radiograph"', "\n".join(detector + ['polarity = "radiograph"']), 1)
+    return text
+
+
+def run(cmd):
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"{' '.join(map(str, cmd))} failed:\n{done.stderr}")
+    return done.stdout + done.stderr
+
+
+def mean_sd(v):
+    if not v:
+        return float("nan"), float("nan")
+    m = sum(v) / len(v)
+    sd = math.sqrt(sum((x - m) ** 2 for x in v) / (len(v) - 1)) if len(v) > 1 else 0.0
+    return m, sd
+
+
+def measure(out):
+    depth, lateral, femur, matched = [], [], [], []
+    for run_dir in sorted((out / "runs").iterdir()):
+        truth = json.loads((run_dir / "truth.json").read_text())
+        found = run_dir / "measured-rsasim-dlt-markers.json"
+        if not found.exists():
+            continue
+        measured = json.loads(found.read_text())
+        det_of = {d["source"]: d for d in truth["detectors"]}
+        for src in truth["sources"]:
+            m = next((s for s in measured["sources"] if s["id"] == src["id"]), None)
+            if m is None:
+                continue
+            det = det_of[src["id"]]
+            axis = [a - b for a, b in zip(src["position_mm"], det["position_mm"])]
+            n = math.sqrt(sum(a * a for a in axis))
+            axis = [a / n for a in axis]
+            err = [a - b for a, b in zip(m["position_mm"], src["position_mm"])]
+            d = sum(e * a for e, a in zip(err, axis))
+            depth.append(d)
+            lateral.append(math.sqrt(max(0.0, sum(e * e for e in err) - d * d)))
+        for d in measured["detectors"]:
+            q = d.get("quality") or {}
+            if q.get("beads_used") is not None:
+                matched.append(q["beads_used"])
+        t = next(p for p in truth["phantoms"] if p["id"] == "femur")
+        m = next((p for p in measured["phantoms"] if p["id"] == "femur"), None)
+        if m is not None:
+            femur.append(math.dist(m["position_mm"], t["position_mm"]))
+    return depth, lateral, femur, matched
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=4)
+    ap.add_argument("--bin", default=None, help="rsasim binary (default: target/release/rsasim, built)")
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    args = ap.parse_args()
+    binary = args.bin
+    if binary is None:
+        subprocess.run(["cargo", "build", "--release", "--quiet", "--locked"], cwd=ROOT, check=True)
+        binary = str(ROOT / "target/release/rsasim")
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                            text=True).stdout.strip()
+    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
+               platform.processor())
+    print(f"Command: `bench/bias.py --runs {args.runs}`; commit {commit}; {os.cpu_count()} cores, {cpu}; "
+          f"{time.strftime('%Y-%m-%d')}; `{run([binary, '--version']).strip().splitlines()[0]}`\n")
+    print("| variant | source depth error, mm (mean ± SD) | lateral source error, mm | femur position error, mm | box beads used per view |")
+    print("|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.variants.split(","):
+            imaging, detector = VARIANTS[name]
+            scen = pathlib.Path(tmp) / f"{name}.toml"
+            scen.write_text(scenario_text(args.runs, imaging, detector))
+            out = pathlib.Path(tmp) / name
+            run([binary, str(scen), "--out", str(out), "--allow-dir", str(ROOT / "scenarios/models")])
+            run([binary, "reconstruct", str(out)])
+            depth, lateral, femur, matched = measure(out)
+            fmt = lambda v: "%.3f ± %.3f (n %d)" % (*mean_sd(v), len(v))
+            print(f"| {name} | {fmt(depth)} | {fmt(lateral)} | {fmt(femur)} | {fmt(matched)} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
