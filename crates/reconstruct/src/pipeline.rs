@@ -631,7 +631,7 @@ fn implant_in(
 const COARSE_RENDER: u32 = 4;
 
 /// A clipped component or an implant's shadow is metal when it is at least this many beads' areas.
-const METAL_BEAD_AREAS: f64 = 20.0;
+pub const METAL_BEAD_AREAS: f64 = 20.0;
 
 /// The radius (pixels) of the mean expected bead area of `preds` (1 px when there are none).
 fn mean_radius_px(preds: &[Prediction]) -> f64 {

@@ -1,0 +1,226 @@
+//! Every box bead the reference program's detector misses or misplaces, classified (issue 32):
+//! the detector (`rsasim::reconstruct::beads::find_beads`, with the metal mask the program uses)
+//! runs on every image of an exposure holding the calibration box, and each box bead that the
+//! truth puts on the image, not over an implant, is looked for within 1 px of its truth pixel.
+//!
+//! ```text
+//! cargo run --release --example missed_beads -- OUT
+//! ```
+//!
+//! A missed bead is put in the first class that fits:
+//! - **overlap**: another bead's image within two bead-image diameters (their blobs touch or
+//!   merge);
+//! - **plate edge**: the edge of a plate with a thickness (its outline projected) within the
+//!   detector's window around the bead (radius + 4 px);
+//! - **border**: the window reaches off the image;
+//! - **other**: none of these (noise, scatter, contrast).
+//!
+//! A found bead is **misplaced** when its centre is more than 0.25 px from the truth pixel.
+//! Prints a Markdown table per exposure level, stamped with the output's program.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::ExitCode;
+
+use glam::{DVec2, DVec3};
+use rsasim::geometry::Pose;
+use rsasim::output::Truth;
+use rsasim::output::decode::read_image;
+use rsasim::output::exam::load_setup;
+use rsasim::reconstruct::beads::{find_beads, metal_mask};
+use rsasim::reconstruct::density::{Reading, density};
+use rsasim::reconstruct::pipeline::METAL_BEAD_AREAS;
+
+#[derive(Default)]
+struct Tally {
+    beads: usize,
+    found: usize,
+    misplaced: usize,
+    overlap: usize,
+    plate_edge: usize,
+    border: usize,
+    other: usize,
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+fn to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+    (a + ab * t - p).length()
+}
+
+fn main() -> ExitCode {
+    let Some(out) = std::env::args().nth(1) else {
+        eprintln!("usage: missed_beads OUT");
+        return ExitCode::from(2);
+    };
+    let out = Path::new(&out);
+    let setup = match load_setup(out) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("{e:?}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut by_level: BTreeMap<String, Tally> = BTreeMap::new();
+    let mut runs: Vec<_> = std::fs::read_dir(out.join("runs"))
+        .expect("OUT/runs")
+        .map(|e| e.unwrap().path())
+        .collect();
+    runs.sort();
+    let mut program = String::new();
+    for dir in runs {
+        let truth: Truth =
+            serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
+        program = truth.program.clone();
+        let level = truth
+            .run
+            .exposure_factor
+            .map_or(format!("noise {}", truth.run.noise_level), |f| {
+                format!("×{f}")
+            });
+        let tally = by_level.entry(level).or_default();
+        let Some(cal) = truth
+            .run
+            .phantoms
+            .iter()
+            .find(|p| p.kind == "calibration_box")
+        else {
+            continue;
+        };
+        // Plate outlines with a thickness, box frame → world by the box's pose.
+        let plates: Vec<[DVec3; 4]> = setup
+            .scenario
+            .phantoms
+            .iter()
+            .filter(|p| p.id == cal.id)
+            .filter_map(|p| p.calibration_box.as_ref())
+            .flat_map(|b| b.plates.iter())
+            .filter(|p| p.thickness_mm.is_some())
+            .map(|p| {
+                let pose = Pose::from_position_euler_deg(p.center_mm, p.rotation_deg);
+                let [sx, sy] = p.size_mm.map(|s| s / 2.0);
+                [(-sx, -sy), (sx, -sy), (sx, sy), (-sx, sy)]
+                    .map(|(x, y)| cal.pose().to_world(pose.to_world(DVec3::new(x, y, 0.0))))
+            })
+            .collect();
+        for image in &truth.images {
+            let exposure = truth
+                .run
+                .exposures
+                .iter()
+                .find(|e| e.id == image.exposure)
+                .unwrap();
+            if !exposure.phantoms.contains(&cal.id) {
+                continue;
+            }
+            let det = truth
+                .run
+                .detectors
+                .iter()
+                .find(|d| d.id == image.detector)
+                .unwrap();
+            let source = truth
+                .run
+                .sources
+                .iter()
+                .find(|s| s.id == det.source)
+                .unwrap()
+                .position_mm;
+            let frame = det.frame();
+            let stem = format!("{}-{}", image.exposure, image.detector);
+            let (w, h, pixels) = read_image(&dir, &stem).unwrap();
+            let img = density(
+                &pixels,
+                w as usize,
+                Reading::of(&setup.scenario.imaging, det.i_max()),
+            );
+            let s_local = frame.pose.to_local(source);
+            let radius_of = |p: DVec3, d_mm: f64| {
+                let z = frame.pose.to_local(p).z;
+                d_mm / 2.0 * s_local.z / (s_local.z - z) / frame.pixel_pitch_mm[0]
+            };
+            let radii: Vec<f64> = cal
+                .markers
+                .iter()
+                .map(|m| radius_of(m.position_mm, m.diameter_mm))
+                .collect();
+            let radius = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
+            let min_area = (METAL_BEAD_AREAS * std::f64::consts::PI * radius * radius).max(50.0);
+            let metal = metal_mask(&img, min_area as usize);
+            let found = find_beads(&img, radius, &metal);
+            let all_beads: Vec<DVec2> = image
+                .markers
+                .iter()
+                .map(|m| DVec2::from_array(m.pixel))
+                .collect();
+            let outlines: Vec<Vec<(DVec2, DVec2)>> = plates
+                .iter()
+                .map(|c| {
+                    (0..4)
+                        .filter_map(|k| {
+                            Some((
+                                frame.project(source, c[k])?,
+                                frame.project(source, c[(k + 1) % 4])?,
+                            ))
+                        })
+                        .collect()
+                })
+                .collect();
+            for m in image
+                .markers
+                .iter()
+                .filter(|m| m.phantom == cal.id && m.inside && m.occluded != Some(true))
+            {
+                tally.beads += 1;
+                let at = DVec2::from_array(m.pixel);
+                let best = found
+                    .iter()
+                    .map(|b| (b.centroid - at).length())
+                    .fold(f64::INFINITY, f64::min);
+                if best <= 1.0 {
+                    tally.found += 1;
+                    if best > 0.25 {
+                        tally.misplaced += 1;
+                    }
+                    continue;
+                }
+                let window = radius + 4.0;
+                if all_beads
+                    .iter()
+                    .any(|&o| o != at && (o - at).length() < 4.0 * radius)
+                {
+                    tally.overlap += 1;
+                } else if outlines
+                    .iter()
+                    .flatten()
+                    .any(|&(a, b)| to_segment(at, a, b) < window)
+                {
+                    tally.plate_edge += 1;
+                } else if at.x < window
+                    || at.y < window
+                    || at.x > f64::from(w) - window
+                    || at.y > f64::from(h) - window
+                {
+                    tally.border += 1;
+                } else {
+                    tally.other += 1;
+                }
+            }
+        }
+    }
+    println!(
+        "Command: `cargo run --release --example missed_beads -- OUT` on an output of {program}\n"
+    );
+    println!(
+        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap | plate edge | border | other |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    for (level, t) in &by_level {
+        println!(
+            "| {level} | {} | {} | {} | {} | {} | {} | {} |",
+            t.beads, t.found, t.misplaced, t.overlap, t.plate_edge, t.border, t.other
+        );
+    }
+    ExitCode::SUCCESS
+}
