@@ -37,6 +37,8 @@ struct Tally {
     found: usize,
     misplaced: usize,
     overlap: usize,
+    /// Of the overlaps, beads on a plate the view sees within 45° of edge-on.
+    overlap_edge_on: usize,
     plate_edge: usize,
     border: usize,
     other: usize,
@@ -88,6 +90,19 @@ fn main() -> ExitCode {
         else {
             continue;
         };
+        // Each plate's normal (world), by plate id: bead ids are `<plate>-<row>-<column>`.
+        let normals: Vec<(String, DVec3)> = setup
+            .scenario
+            .phantoms
+            .iter()
+            .filter(|p| p.id == cal.id)
+            .filter_map(|p| p.calibration_box.as_ref())
+            .flat_map(|b| b.plates.iter())
+            .map(|p| {
+                let pose = Pose::from_position_euler_deg(p.center_mm, p.rotation_deg);
+                (p.id.clone(), cal.rotation * (pose.rotation * DVec3::Z))
+            })
+            .collect();
         // Plate outlines with a thickness, box frame → world by the box's pose.
         let plates: Vec<[DVec3; 4]> = setup
             .scenario
@@ -191,6 +206,11 @@ fn main() -> ExitCode {
                     .any(|&o| o != at && (o - at).length() < 4.0 * radius)
                 {
                     tally.overlap += 1;
+                    let plate = m.id.split('-').next().unwrap_or("");
+                    let edge_on = normals.iter().any(|(id, n)| {
+                        id == plate && n.dot(frame.pose.rotation.z_axis).abs() < 0.7
+                    });
+                    tally.overlap_edge_on += usize::from(edge_on);
                 } else if outlines
                     .iter()
                     .flatten()
@@ -213,13 +233,20 @@ fn main() -> ExitCode {
         "Command: `cargo run --release --example missed_beads -- OUT` on an output of {program}\n"
     );
     println!(
-        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap | plate edge | border | other |"
+        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap (on a plate seen within 45° of edge-on) | plate edge | border | other |"
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|");
     for (level, t) in &by_level {
         println!(
-            "| {level} | {} | {} | {} | {} | {} | {} | {} |",
-            t.beads, t.found, t.misplaced, t.overlap, t.plate_edge, t.border, t.other
+            "| {level} | {} | {} | {} | {} ({}) | {} | {} | {} |",
+            t.beads,
+            t.found,
+            t.misplaced,
+            t.overlap,
+            t.overlap_edge_on,
+            t.plate_edge,
+            t.border,
+            t.other
         );
     }
     ExitCode::SUCCESS
