@@ -140,9 +140,8 @@ impl Beamline {
                 sc.thickness_mm,
             )
         });
-        let efficiency_at = |e: f64| match &scintillator {
-            Some((m, t)) => 1.0 - libm::exp(-m.linear_attenuation_per_mm(e) * t),
-            None => 1.0,
+        let efficiency_at = |e: f64| {
+            super::spectral::detector_absorption(scintillator.as_ref().map(|(m, t)| (m, *t)), e)
         };
         let filtered = spectrum.filtered;
         let efficiency = filtered

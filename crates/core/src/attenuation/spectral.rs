@@ -94,13 +94,19 @@ struct Bin {
     line: bool,
 }
 
+/// The fraction of the photons of energy `e_kev` the detector absorbs: `1 − exp(−μ(E)·t)` for a
+/// scintillator of thickness t (mm), 1 without one (an ideal absorber).
+pub fn detector_absorption(scintillator: Option<(&Material, f64)>, e_kev: f64) -> f64 {
+    match scintillator {
+        Some((m, t)) => 1.0 - libm::exp(-m.linear_attenuation_per_mm(e_kev) * t),
+        None => 1.0,
+    }
+}
+
 /// Groups `request.spectrum` (see the module).
 pub fn traced(request: &Request) -> Traced {
     let s = request.spectrum;
-    let efficiency_at = |e: f64| match request.scintillator {
-        Some((m, t)) => 1.0 - libm::exp(-m.linear_attenuation_per_mm(e) * t),
-        None => 1.0,
-    };
+    let efficiency_at = |e: f64| detector_absorption(request.scintillator, e);
     let mut walls: Vec<f64> = request
         .materials
         .iter()
