@@ -65,8 +65,9 @@ pub struct RunMeasurement {
 }
 
 /// Largest plausible |coordinate| of a measured position, mm (1 km): anything beyond is a unit
-/// or format error, and would overflow the statistics.
-pub const MAX_ABS_MM: f64 = 1e6;
+/// or format error, and would overflow the statistics. The scenario's own bound on lengths
+/// ([`rsasim_core::scenario::MAX_ABS`]), which also bounds mesh vertices.
+pub const MAX_ABS_MM: f64 = rsasim_core::scenario::MAX_ABS;
 
 /// `value` cut for a message, by the one rule of [`crate::diagnostic::cut`].
 fn cut(value: &str) -> String {
