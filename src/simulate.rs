@@ -697,11 +697,12 @@ fn write_run(
         for (detector_index, det) in run.detectors.iter().enumerate() {
             let frame = det.frame();
             let source = run.source_of(det);
+            let noise_exposure = run.noise_exposure(&exposure.id);
             let key = NoiseKey::derive(
                 s.seed,
                 run.noise_level_index,
                 run.run_index,
-                &exposure.id,
+                &noise_exposure,
                 &det.id,
             );
             let (pixels, visibility, saturated) = match (&plan.setup, &parts) {
@@ -710,7 +711,7 @@ fn write_run(
                         s.seed,
                         run.noise_level_index,
                         run.run_index,
-                        &exposure.id,
+                        &noise_exposure,
                         &det.id,
                     );
                     let unsharp = setup.unsharpness(&det.id);

@@ -35,6 +35,7 @@ mod reconstruct_realistic;
 mod sampling;
 mod scene;
 mod schemas;
+mod sequence;
 mod shards;
 mod silhouette_bias;
 mod study;

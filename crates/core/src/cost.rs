@@ -315,6 +315,18 @@ impl Cost {
                         ),
                     )
                     .with_help(override_help("check patients for a typo")),
+                None if s.sequence.is_some() => loc
+                    .error(
+                        root.key("sequence").key("frames"),
+                        format!(
+                            "the protocol has {} runs ({} levels × {} runs per level × {} frames: each frame is a run), more than the cap of {MAX_RUNS}",
+                            self.runs,
+                            s.levels().len(),
+                            s.protocol.runs_per_level,
+                            s.frames_per_run()
+                        ),
+                    )
+                    .with_help(override_help("check frames and runs_per_level for a typo")),
                 None => loc
                     .error(
                         root.key("protocol").key("runs_per_level"),

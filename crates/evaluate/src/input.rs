@@ -173,7 +173,12 @@ pub fn load_truths_from(
                 .with_help("run the scenario first: rsasim SCENARIO.toml --out DIR"),
         ]);
     }
-    out_runs.sort_by_key(|r| (r.truth.run.noise_level_index, r.truth.run.run_index));
+    // Level, run, then frame (a sequence's frames are runs of their own).
+    out_runs.sort_by_key(|r| {
+        let run = &r.truth.run;
+        let frame = run.frame.as_ref().map_or(0, |f| f.index);
+        (run.noise_level_index, run.run_index, frame)
+    });
     Ok(out_runs)
 }
 

@@ -17,6 +17,7 @@
 
 mod check;
 mod run;
+pub mod sequence;
 pub mod study;
 
 pub use check::check_geometry;
@@ -65,9 +66,15 @@ pub fn run_at(s: &Scenario, models: &[PhantomModel], index: u64) -> Run {
         );
     }
     let levels = s.levels();
-    let per_level = u64::from(s.protocol.runs_per_level).max(1);
+    let frames = u64::from(s.frames_per_run());
+    let per_level = u64::from(s.protocol.runs_per_level).max(1) * frames;
     let n = (index / per_level) as usize;
-    expand_run(s, models, n as u32, levels[n], (index % per_level) as u32)
+    let within = index % per_level;
+    let (run_index, frame) = ((within / frames) as u32, (within % frames) as u32);
+    match s.sequence {
+        Some(_) => expand_frame(s, models, n as u32, levels[n], run_index, frame),
+        None => expand_run(s, models, n as u32, levels[n], run_index),
+    }
 }
 
 /// The nominal set-up as a run: every random range set to zero (no offsets drawn), so its
@@ -88,7 +95,20 @@ pub fn nominal_run(s: &Scenario, models: &[PhantomModel]) -> Run {
         noise_level: 0.0,
         exposure_factor: None,
     };
-    expand_run(&nominal, models, 0, level, 0)
+    // With a sequence, the moving phantoms stand where the first frame has them.
+    let label = geometry_stream_label(s.seed, 0, 0);
+    let drawn = draw(&nominal, &mut random::stream(&label));
+    let phantoms = fixed_poses(&nominal, &drawn.phantoms, &sequence::motion_poses(s, 0.0));
+    let header = RunHeader {
+        id: run_id(0, 0),
+        level_index: 0,
+        level,
+        run_index: 0,
+        geometry_stream: label,
+    };
+    assemble(&nominal, models, header, drawn, &phantoms, &|_, b| {
+        Some(b.position_mm)
+    })
 }
 
 /// One run: the draws of its geometry stream applied to the nominal set-up.
@@ -99,23 +119,54 @@ pub fn expand_run(
     level: Level,
     run_index: u32,
 ) -> Run {
+    drawn_run(s, models, level_index, level, run_index, None)
+}
+
+/// Frame `frame` of the sequence that run `run_index` of level `level_index` becomes
+/// ([`sequence`]): the run's draws, every moving phantom at its pose at the frame's time.
+pub fn expand_frame(
+    s: &Scenario,
+    models: &[PhantomModel],
+    level_index: u32,
+    level: Level,
+    run_index: u32,
+    frame: u32,
+) -> Run {
+    drawn_run(s, models, level_index, level, run_index, Some(frame))
+}
+
+/// The run, or one frame of its sequence, from its geometry stream.
+fn drawn_run(
+    s: &Scenario,
+    models: &[PhantomModel],
+    level_index: u32,
+    level: Level,
+    run_index: u32,
+    frame: Option<u32>,
+) -> Run {
     let label = geometry_stream_label(s.seed, level_index, run_index);
     let drawn = draw(s, &mut random::stream(&label));
-    let phantoms = fixed_poses(s, &drawn.phantoms);
-    assemble(
-        s,
-        models,
-        RunHeader {
-            id: run_id(level_index, run_index),
-            level_index,
-            level,
-            run_index,
-            geometry_stream: label,
-        },
-        drawn,
-        &phantoms,
-        &|_, b| Some(b.position_mm),
-    )
+    let id = run_id(level_index, run_index);
+    let state = frame.and_then(|k| sequence::frame_state(s, &id, k));
+    let (phantoms, id) = match (&state, frame) {
+        (Some(f), Some(k)) => (
+            fixed_poses(s, &drawn.phantoms, &sequence::motion_poses(s, f.time_s)),
+            sequence::frame_run_id(&id, k, s.frames_per_run()),
+        ),
+        _ => (fixed_poses(s, &drawn.phantoms, &still(s)), id),
+    };
+    let header = RunHeader {
+        id,
+        level_index,
+        level,
+        run_index,
+        geometry_stream: label,
+    };
+    let mut run = assemble(s, models, header, drawn, &phantoms, &|_, b| {
+        Some(b.position_mm)
+    });
+    run.frame = state;
+    run
 }
 
 /// What names a run and sets its noise.
@@ -248,6 +299,7 @@ fn assemble(
                 phantoms: e.phantoms.clone(),
             })
             .collect(),
+        frame: None,
     }
 }
 
@@ -269,14 +321,21 @@ fn draw_pose(
     }
 }
 
-/// Poses of phantoms fixed to another (`fixed_to`): the parent's pose composed with the
-/// phantom's nominal pose in the parent's frame (its own draws are taken and ignored, so the
-/// stream stays aligned). Validation guarantees the `fixed_to` chains end without a cycle.
-fn fixed_poses(s: &Scenario, drawn: &[Pose]) -> Vec<Pose> {
+/// No phantom moves: every motion the identity.
+fn still(s: &Scenario) -> Vec<Pose> {
+    vec![Pose::IDENTITY; s.phantoms.len()]
+}
+
+/// Every phantom's pose (scanner frame) from its draw and its motion `motion[i]` (identity for
+/// a phantom that does not move; module [`sequence`]): `drawn[i]·motion[i]`, or for a phantom
+/// fixed to another (`fixed_to`) the parent's pose composed with the phantom's nominal pose in
+/// the parent's frame and then its motion (its own draws are taken and ignored, so the stream
+/// stays aligned). Validation guarantees the `fixed_to` chains end without a cycle.
+fn fixed_poses(s: &Scenario, drawn: &[Pose], motion: &[Pose]) -> Vec<Pose> {
     let mut poses: Vec<Option<Pose>> = vec![None; drawn.len()];
     fn resolve(
         s: &Scenario,
-        drawn: &[Pose],
+        (drawn, motion): (&[Pose], &[Pose]),
         poses: &mut [Option<Pose>],
         i: usize,
         depth: usize,
@@ -289,9 +348,9 @@ fn fixed_poses(s: &Scenario, drawn: &[Pose]) -> Vec<Pose> {
             .fixed_to
             .as_ref()
             .and_then(|id| s.phantoms.iter().position(|q| &q.id == id));
-        let pose = match parent {
+        let still = match parent {
             Some(k) if depth < s.phantoms.len() => {
-                let parent_pose = resolve(s, drawn, poses, k, depth + 1);
+                let parent_pose = resolve(s, (drawn, motion), poses, k, depth + 1);
                 parent_pose.compose(&Pose::from_position_euler_deg(
                     ph.position_mm,
                     ph.rotation_deg,
@@ -299,11 +358,16 @@ fn fixed_poses(s: &Scenario, drawn: &[Pose]) -> Vec<Pose> {
             }
             _ => drawn[i],
         };
+        let pose = if motion[i] == Pose::IDENTITY {
+            still
+        } else {
+            still.compose(&motion[i])
+        };
         poses[i] = Some(pose);
         pose
     }
     for i in 0..drawn.len() {
-        resolve(s, drawn, &mut poses, i, 0);
+        resolve(s, (drawn, motion), &mut poses, i, 0);
     }
     poses
         .into_iter()

@@ -37,9 +37,37 @@ pub struct Run {
     pub phantoms: Vec<PhantomState>,
     /// Image sets of this run.
     pub exposures: Vec<ExposureState>,
+    /// With `[sequence]`: which frame of which sequence this run is. Absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<FrameState>,
+}
+
+/// A run's place in a sequence (module [`super::sequence`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FrameState {
+    /// The sequence's id, `n<level>-r<run>`: the run id without the frame.
+    pub sequence: String,
+    /// The frame's number, 0-based.
+    pub index: u32,
+    /// Frames in the sequence.
+    pub count: u32,
+    /// The frame's time from the first frame, s: `index / frame_rate_hz` (the middle of its
+    /// pulse).
+    pub time_s: f64,
 }
 
 impl Run {
+    /// The exposure's name in the labels of this run's noise streams (`crate::noise::NoiseKey`):
+    /// its id, followed by `/f<k>` in frame `k` of a sequence (module [`super::sequence`]), so
+    /// that every frame has its own noise.
+    pub fn noise_exposure(&self, exposure_id: &str) -> String {
+        match &self.frame {
+            Some(f) => format!("{exposure_id}/f{}", f.index),
+            None => exposure_id.to_string(),
+        }
+    }
+
     /// The focus position of the source a detector pairs with, mm, box frame.
     pub fn source_of(&self, detector: &DetectorState) -> DVec3 {
         self.sources

@@ -25,7 +25,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::{Drawn, RunHeader, assemble, draw, fixed_poses};
+use super::{Drawn, RunHeader, assemble, draw, fixed_poses, still};
 use crate::expand::Run;
 use crate::geometry::{Pose, rotation_xyz_deg};
 use crate::phantom::PhantomModel;
@@ -123,7 +123,7 @@ pub fn frames(s: &Scenario, d: &StudyDesign) -> StudyFrames {
         .iter()
         .map(|p| Pose::from_position_euler_deg(p.position_mm, p.rotation_deg))
         .collect();
-    let nominal = fixed_poses(s, &nominal);
+    let nominal = fixed_poses(s, &nominal, &still(s));
     let reference_segment = d.reference_segment();
     let reference = reference_segment.map_or(0, |g| index(&g.phantom));
     let anatomical = reference_segment
@@ -223,14 +223,14 @@ pub fn expand_exam(
         phantoms: mut own,
     } = draw(s, &mut random::stream(&label));
     let f = frames(s, d);
-    let placed = fixed_poses(s, &own);
+    let placed = fixed_poses(s, &own, &still(s));
     let limb = placed[f.reference].compose(&f.anatomical);
     let factor = migration_factor(s, d, patient);
     for implant in &f.implants {
         let motion = prescribed_motion(d, exam, factor, implant.centre);
         own[implant.phantom] = limb.compose(&motion).compose(&implant.in_anatomical);
     }
-    let phantoms = fixed_poses(s, &own);
+    let phantoms = fixed_poses(s, &own, &still(s));
     let run_index = u64::from(patient) * d.exams.len() as u64 + exam as u64;
     assemble(
         s,

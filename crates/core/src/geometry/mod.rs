@@ -11,6 +11,7 @@ mod detector;
 mod distance;
 mod pose;
 mod rigid;
+pub mod trajectory;
 
 pub use detector::DetectorFrame;
 pub use distance::point_triangle_distance;

@@ -52,6 +52,8 @@ pub struct NoiseKey([u8; 32]);
 impl NoiseKey {
     /// Derives the key as SHA-256 of
     /// `format!("rsasim/noise/v1/{scenario_seed}/{noise_level_index}/{run_index}/{exposure_id}/{detector_id}")`.
+    /// In frame `k` of a sequence, `exposure_id` is the exposure's id followed by `/f<k>`
+    /// (`crate::expand::Run::noise_exposure`).
     pub fn derive(
         scenario_seed: u64,
         noise_level_index: u32,

@@ -11,6 +11,8 @@ mod lengths;
 mod load;
 mod magnitudes;
 mod model;
+mod sequence;
+mod sequence_check;
 mod study;
 mod study_check;
 mod validate;
@@ -41,12 +43,22 @@ impl Scenario {
         density >= crate::material::METAL_DENSITY_G_CM3
     }
 
-    /// Number of runs: levels × runs per level for the protocol, patients × exams for a study.
+    /// Number of runs: levels × runs per level for the protocol (× frames with a sequence: each
+    /// frame is a run), patients × exams for a study.
     pub fn run_count(&self) -> u64 {
         match &self.study {
             Some(d) => u64::from(d.patients) * d.exams.len() as u64,
-            None => self.levels().len() as u64 * u64::from(self.protocol.runs_per_level),
+            None => {
+                self.levels().len() as u64
+                    * u64::from(self.protocol.runs_per_level)
+                    * u64::from(self.frames_per_run())
+            }
         }
+    }
+
+    /// Frames per run of the protocol: the sequence's frames, 1 without a sequence.
+    pub fn frames_per_run(&self) -> u32 {
+        self.sequence.as_ref().map_or(1, |q| q.frames.max(1))
     }
 
     /// The one level of every exam of a study: `study.noise_level` in binary mode,

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 pub use super::dicom::*;
 pub use super::imaging::*;
+pub use super::sequence::*;
 pub use super::study::*;
 
 /// A whole simulation: the radiological set-up, the phantoms, the protocol and the outputs.
@@ -36,6 +37,10 @@ pub struct Scenario {
     /// protocol's runs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub study: Option<StudyDesign>,
+    /// A dynamic exam: every run becomes a sequence of frames in which the phantoms with a
+    /// `motion` move. Default: none (one image set per run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequence: Option<Sequence>,
     /// Image formats and compression. Default: 16-bit TIFF (Deflate) and 32-bit float EXR.
     #[serde(default)]
     pub output: OutputOptions,
@@ -447,6 +452,10 @@ pub struct Phantom {
     /// crosses both, this phantom's material replaces that one's. Checked on every pixel.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inside: Option<String>,
+    /// With `[sequence]`: how this phantom moves from frame to frame (keyframes relative to its
+    /// pose without motion). Phantoms `fixed_to` it move with it. Default: it stands still.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<Motion>,
 }
 
 /// An elliptic cylinder centred on the phantom's local origin, its axis along local z, with

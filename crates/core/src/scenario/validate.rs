@@ -66,6 +66,7 @@ pub fn validate(s: &Scenario, loc: &Locator) -> Vec<Diagnostic> {
     if let Some(study) = &s.study {
         v.study(s, study);
     }
+    v.sequence(s);
     if s.output.formats.is_empty() {
         v.err(
             root.key("output").key("formats"),

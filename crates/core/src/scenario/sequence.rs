@@ -1,0 +1,67 @@
+//! A dynamic exam as the user writes it: `[sequence]` (how many frames, how fast) and each
+//! moving phantom's `[phantoms.motion]` (its keyframes). What the keyframes mean between their
+//! times is [`crate::geometry::trajectory`]'s; how frames become runs is
+//! [`crate::expand::sequence`]'s.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::trajectory::{Key, Trajectory, TrajectoryError};
+
+/// A sequence of frames at a fixed rate: every run of the protocol becomes `frames` runs, one per
+/// frame, with the same drawn geometry (tubes, detectors, box, every phantom's set-up) and each
+/// moving phantom at its pose at the frame's time. Frame `k` is taken at `t = k / frame_rate_hz`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Sequence {
+    /// Frames per sequence, 1 to 100 000.
+    pub frames: u32,
+    /// Frames per second, > 0 (e.g. 100 for dynamic RSA, up to 1000 for videoradiography).
+    pub frame_rate_hz: f64,
+}
+
+/// How a phantom moves during a sequence: its pose over time relative to the pose it would have
+/// without motion (its nominal pose with this run's random offsets, or, when `fixed_to`
+/// another, its place on that phantom). A keyframe at `[0, 0, 0]` and `[0, 0, 0]` is that pose.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Motion {
+    /// At least two keyframes, in strictly increasing time. Between them, positions follow a
+    /// cubic (Catmull–Rom tangents) and rotations the shortest arc at constant angular speed;
+    /// before the first and after the last the pose is held.
+    pub keyframes: Vec<Keyframe>,
+}
+
+impl Motion {
+    /// The trajectory of the keyframes, or why they make none.
+    pub fn trajectory(&self) -> Result<Trajectory, TrajectoryError> {
+        let keys: Vec<Key> = self
+            .keyframes
+            .iter()
+            .map(|k| Key {
+                time_s: k.time_s,
+                position_mm: k.position_mm,
+                rotation_deg: k.rotation_deg,
+            })
+            .collect();
+        Trajectory::new(&keys)
+    }
+}
+
+/// One pose at one time, in the phantom's frame without motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Keyframe {
+    /// Time from the first frame, s.
+    pub time_s: f64,
+    /// Displacement of the phantom's local origin, mm, along its axes without motion. Default
+    /// `[0, 0, 0]`.
+    #[serde(default)]
+    pub position_mm: [f64; 3],
+    /// Rotation about its own axes, X-Y-Z Euler angles in degrees. Default `[0, 0, 0]`.
+    #[serde(default)]
+    pub rotation_deg: [f64; 3],
+}
+
+/// Most frames a sequence may have.
+pub const MAX_FRAMES: u32 = 100_000;
