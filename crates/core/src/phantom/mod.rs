@@ -8,9 +8,12 @@ pub mod calibration_box;
 pub mod confine;
 pub mod femoral;
 pub mod femur;
+pub(crate) mod implicit;
 pub mod isosurface;
 pub mod mesh;
 pub mod mesh_io;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod volume;
 
 use std::path::PathBuf;
