@@ -14,6 +14,8 @@ pub mod mesh;
 pub mod mesh_io;
 #[cfg(test)]
 pub(crate) mod test_support;
+pub mod tibia;
+pub mod tibial;
 pub mod volume;
 
 use std::path::PathBuf;
