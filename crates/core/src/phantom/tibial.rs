@@ -13,6 +13,12 @@
 //! the axis of the stem and of the tibial shaft (the centre of every cross-section of the bone).
 //! The resection is perpendicular to that axis (no posterior slope).
 //!
+//! For a knee joint coordinate system (Grood E.S., Suntay W.J., *A joint coordinate system for
+//! the clinical description of three-dimensional motions: application to the knee*, J Biomech
+//! Eng 1983;105:136–144) the femoral component's x axis serves as the flexion axis and this
+//! frame's y axis as the tibial (internal–external rotation) axis; at full extension (below) the
+//! two frames are parallel, so flexion, varus–valgus and rotation are all zero there.
+//!
 //! # Shape
 //! - **Baseplate.** Ti-6Al-4V (ASTM F136, material `ti6al4v`): titanium alloy rather than CoCr
 //!   because many tibial trays are made of it (its lower stiffness shields the proximal tibia
