@@ -9,11 +9,13 @@
 //! binary glTF (metres, as glTF requires; load them with `unit_mm = 1000`), both in the femoral
 //! component's local frame. A summary (triangles, bounding box, file size) goes to stderr.
 
+#[path = "common/model_files.rs"]
+mod model_files;
+
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use rsasim::phantom::femur::distal_femur;
-use rsasim::phantom::mesh_io::glb_bytes;
 
 fn main() -> ExitCode {
     let Some(dir) = std::env::args_os().nth(1).map(PathBuf::from) else {
@@ -25,31 +27,10 @@ fn main() -> ExitCode {
         ("distal_femur_cortical.glb", &femur.cortical),
         ("distal_femur_cancellous.glb", &femur.cancellous),
     ] {
-        let path = dir.join(name);
-        let bytes = match glb_bytes(mesh) {
-            Ok(b) => b,
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::FAILURE;
-            }
-        };
-        if let Err(e) = std::fs::write(&path, &bytes) {
-            eprintln!("error: cannot write {}: {e}", path.display());
+        if let Err(e) = model_files::write_model(&dir.join(name), mesh) {
+            eprintln!("error: {e}");
             return ExitCode::FAILURE;
         }
-        let (lo, hi) = mesh.bounds_mm();
-        let size = hi - lo;
-        eprintln!(
-            "{}: {} triangles, {} vertices, {} bytes; bounding box {:.2} × {:.2} × {:.2} mm (x × y × z), volume {:.0} mm³",
-            path.display(),
-            mesh.triangles.len(),
-            mesh.vertices.len(),
-            bytes.len(),
-            size.x,
-            size.y,
-            size.z,
-            mesh.signed_volume_mm3()
-        );
     }
     ExitCode::SUCCESS
 }

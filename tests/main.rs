@@ -24,6 +24,7 @@ mod hostile_meshes;
 mod hostile_sender;
 mod house;
 mod interop;
+mod knee_joint;
 mod limits;
 mod mesh_formats;
 mod migration;

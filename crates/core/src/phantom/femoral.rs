@@ -46,6 +46,7 @@ pub mod profile;
 use glam::DVec3;
 
 use super::TriMesh;
+use super::implicit::{round_intersection, smoothstep};
 use super::isosurface::{Grid, marching_tetrahedra, sample};
 use profile::{BoneBox, Polygon};
 
@@ -71,7 +72,10 @@ const R_NOTCH_EDGE: f64 = 1.5;
 pub(crate) const NOTCH_HALF_WIDTH: f64 = 9.5;
 const NOTCH_END_Z: f64 = 2.0;
 /// Coronal radius of the condyles' articular surface, mm.
-const R_CORONAL: f64 = 35.0;
+pub(crate) const R_CORONAL: f64 = 35.0;
+/// Medio-lateral distance of each condyle's lowest line from the midplane, mm: the middle of the
+/// condyle between the notch and the side.
+pub(crate) const CONDYLE_CENTRE_X: f64 = 0.5 * (NOTCH_HALF_WIDTH + HALF_WIDTH);
 /// Patellar groove depth and half-width, mm.
 const GROOVE_DEPTH: f64 = 2.5;
 const GROOVE_HALF_WIDTH: f64 = 16.0;
@@ -191,33 +195,35 @@ fn sample_solid(outer: &Polygon, bone: &BoneBox) -> (Grid, Vec<f64>) {
     (grid, values)
 }
 
-/// Rounded intersection of two solids given by distances `a`, `b` (negative inside): convex
-/// edges are rounded with radius `r`.
-pub(crate) fn round_intersection(a: f64, b: f64, r: f64) -> f64 {
-    let (u, v) = ((r + a).max(0.0), (r + b).max(0.0));
-    (-r).min(a.max(b)) + (u * u + v * v).sqrt()
+/// How much of the anterior (trochlear) part there is at design `z`: 0 over
+/// the condyles, rising smoothly to 1 on the trochlea (from 6 mm behind to 4 mm in front of the
+/// notch's anterior end).
+fn anterior_weight(z: f64) -> f64 {
+    smoothstep(NOTCH_END_Z - 6.0, NOTCH_END_Z + 4.0, z)
 }
 
-/// Cubic smooth step from 0 at `e0` to 1 at `e1`.
-pub(crate) fn smoothstep(e0: f64, e1: f64, x: f64) -> f64 {
-    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
+/// How far the condyles' articular surface rises, mm, above the line of their lowest points
+/// (x = ±[`CONDYLE_CENTRE_X`]) at design `x`, `z` for a coronal radius `r_coronal` mm: the
+/// parabola `u² / 2r` of the distance `u` from the condyle's centre (clamped to the condyle,
+/// between the notch and the side), fading out towards the trochlea. The component uses
+/// [`R_CORONAL`]; a tibial insert that conforms to it uses a larger radius.
+pub(crate) fn condylar_dome_mm(x: f64, z: f64, r_coronal: f64) -> f64 {
+    let u = x.abs().clamp(NOTCH_HALF_WIDTH, HALF_WIDTH) - CONDYLE_CENTRE_X;
+    u * u / (2.0 * r_coronal) * (1.0 - anterior_weight(z))
 }
 
 /// The implicit function of the component (design frame, negative in the metal), given the
 /// sagittal distances to the outer J-contour and to the bone box at (y, z).
 fn solid(p: DVec3, s_outer: f64, s_bone: f64) -> f64 {
     // Anterior (trochlear) part: patellar groove; posterior part: condyles domed in the coronal plane.
-    let anterior = smoothstep(NOTCH_END_Z - 6.0, NOTCH_END_Z + 4.0, p.z);
+    let anterior = anterior_weight(p.z);
     let groove = if p.x.abs() < GROOVE_HALF_WIDTH {
         let q = 1.0 - (p.x / GROOVE_HALF_WIDTH).powi(2);
         GROOVE_DEPTH * q * q * anterior
     } else {
         0.0
     };
-    let condyle_centre = 0.5 * (NOTCH_HALF_WIDTH + HALF_WIDTH);
-    let u = p.x.abs().clamp(NOTCH_HALF_WIDTH, HALF_WIDTH) - condyle_centre;
-    let dome = u * u / (2.0 * R_CORONAL) * (1.0 - anterior);
+    let dome = condylar_dome_mm(p.x, p.z, R_CORONAL);
     let half_width =
         HALF_WIDTH - FLANGE_TAPER * (p.y - TAPER_START_Y).max(0.0) * smoothstep(-5.0, 5.0, p.z);
     let sides = p.x.abs() - half_width;

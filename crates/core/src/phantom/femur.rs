@@ -42,8 +42,8 @@
 //!
 //! # Construction
 //! Both solids are implicit functions (the lofted cross-section intersected with the filleted
-//! bone box and the top cut, edges rounded) polygonised by [`marching_tetrahedra`] on a
-//! [`GRID_STEP_MM`] grid: closed, 2-manifold, outward-wound. On the flat cut faces the surface
+//! bone box and the top cut, edges rounded) polygonised by
+//! [`marching_tetrahedra`](super::isosurface::marching_tetrahedra) on a [`GRID_STEP_MM`] grid: closed, 2-manifold, outward-wound. On the flat cut faces the surface
 //! is exact (the function is linear there), so the 0.1 mm gap holds to f32 precision. Only
 //! arithmetic, `sqrt` and `libm` are used, nothing random: the meshes are the same bytes on
 //! every platform.
@@ -52,8 +52,8 @@ use glam::DVec3;
 
 use super::TriMesh;
 use super::femoral::profile;
-use super::femoral::{Y_TOP_ANT, femoral_component_and_origin, round_intersection, smoothstep};
-use super::isosurface::{Grid, marching_tetrahedra, sample};
+use super::femoral::{Y_TOP_ANT, femoral_component_and_origin};
+use super::implicit::{Sampling, Superellipse, blend, polygonise, round_intersection, smoothstep};
 
 /// Gap between the bone's cut faces and the metal of the component, mm.
 pub const GAP_MM: f64 = 0.1;
@@ -78,8 +78,7 @@ const Y_DIAPHYSIS: f64 = 125.0;
 const Y_POST_FLARE: [f64; 2] = [40.0, 100.0];
 /// Cortex: metaphyseal thickness up to the first height, diaphyseal from the second, mm.
 const Y_CORTEX: [f64; 2] = [70.0, 140.0];
-const CORTEX_METAPHYSIS: f64 = 1.2;
-const CORTEX_DIAPHYSIS: f64 = 5.0;
+const CORTEX_MM: [f64; 2] = [1.2, 5.0];
 /// Cross-section at the condyles: half medio-lateral width, anterior and posterior extent (the
 /// cuts trim both), superellipse exponent.
 const CONDYLES: [f64; 4] = [33.0, 32.0, -30.0, 4.0];
@@ -110,8 +109,8 @@ pub fn distal_femur() -> DistalFemur {
         bone: profile::bone_box(&profile::outer_contour(), CUT_FILLET),
     };
     DistalFemur {
-        cortical: polygonise(|p| shape.cortical(p), origin),
-        cancellous: polygonise(|p| shape.cancellous(p), origin),
+        cortical: polygonise_bone(|p| shape.cortical(p), origin),
+        cancellous: polygonise_bone(|p| shape.cancellous(p), origin),
     }
 }
 
@@ -120,52 +119,16 @@ fn y_top() -> f64 {
     Y_TOP_ANT + SHAFT_LENGTH_MM
 }
 
-/// One cross-section of the lofted bone: half-width, anterior and posterior extent, exponent.
-#[derive(Debug, Clone, Copy)]
-struct Section {
-    half_width: f64,
-    z_ant: f64,
-    z_post: f64,
-    exponent: f64,
+/// The periosteal cross-section at height `y` (design frame).
+fn outer_section(y: f64) -> Superellipse {
+    let s = smoothstep(Y_EPIPHYSIS, Y_DIAPHYSIS, y);
+    let s_post = smoothstep(Y_POST_FLARE[0], Y_POST_FLARE[1], y);
+    Superellipse::mix(CONDYLES, DIAPHYSIS, s, s_post)
 }
 
-impl Section {
-    /// The periosteal cross-section at height `y` (design frame).
-    fn outer(y: f64) -> Section {
-        let s = smoothstep(Y_EPIPHYSIS, Y_DIAPHYSIS, y);
-        let s_post = smoothstep(Y_POST_FLARE[0], Y_POST_FLARE[1], y);
-        let mix = |i: usize, t: f64| CONDYLES[i] + (DIAPHYSIS[i] - CONDYLES[i]) * t;
-        Section {
-            half_width: mix(0, s),
-            z_ant: mix(1, s),
-            z_post: mix(2, s_post),
-            exponent: mix(3, s),
-        }
-    }
-
-    /// The endosteal cross-section: the periosteal one shrunk by the cortex at height `y`.
-    fn inner(y: f64) -> Section {
-        let wall = CORTEX_METAPHYSIS
-            + (CORTEX_DIAPHYSIS - CORTEX_METAPHYSIS) * smoothstep(Y_CORTEX[0], Y_CORTEX[1], y);
-        let o = Section::outer(y);
-        Section {
-            half_width: o.half_width - wall,
-            z_ant: o.z_ant - wall,
-            z_post: o.z_post + wall,
-            exponent: o.exponent,
-        }
-    }
-
-    /// An approximate signed distance to the superellipse in the cross-section plane (negative
-    /// inside; never more than the true distance along the minor axis).
-    fn distance(&self, x: f64, z: f64) -> f64 {
-        let a = self.half_width;
-        let b = 0.5 * (self.z_ant - self.z_post);
-        let zc = 0.5 * (self.z_ant + self.z_post);
-        let n = self.exponent;
-        let sum = libm::pow((x / a).abs(), n) + libm::pow(((z - zc) / b).abs(), n);
-        (libm::pow(sum, 1.0 / n) - 1.0) * a.min(b)
-    }
+/// The endosteal cross-section: the periosteal one shrunk by the cortex at height `y`.
+fn inner_section(y: f64) -> Superellipse {
+    outer_section(y).inset(blend(CORTEX_MM, Y_CORTEX, y))
 }
 
 /// The implicit functions of the two solids (design frame, negative inside).
@@ -183,7 +146,7 @@ impl Shape {
 
     /// The outer bone surface: loft ∩ (bone box − gap) ∩ below the top.
     fn cortical(&self, p: DVec3) -> f64 {
-        let loft = Section::outer(p.y).distance(p.x, p.z);
+        let loft = outer_section(p.y).distance(p.x, p.z);
         let body = round_intersection(loft, self.cuts(p) + GAP_MM, R_EDGE);
         round_intersection(body, p.y - y_top(), R_TOP)
     }
@@ -191,7 +154,7 @@ impl Shape {
     /// The cancellous region: the endosteal loft ∩ the cut faces and the top moved in by their
     /// walls.
     fn cancellous(&self, p: DVec3) -> f64 {
-        let loft = Section::inner(p.y).distance(p.x, p.z);
+        let loft = inner_section(p.y).distance(p.x, p.z);
         let body = round_intersection(loft, self.cuts(p) + GAP_MM + CUT_WALL_MM, R_EDGE);
         round_intersection(body, p.y - (y_top() - TOP_WALL_MM), R_TOP)
     }
@@ -199,34 +162,17 @@ impl Shape {
 
 /// Polygonises `{f < 0}` over a grid enclosing the bone and moves it to the local frame
 /// (subtracting `origin`).
-fn polygonise(f: impl Fn(DVec3) -> f64, origin: DVec3) -> TriMesh {
-    let h = DVec3::from_array(GRID_STEP_MM);
+fn polygonise_bone(f: impl Fn(DVec3) -> f64, origin: DVec3) -> TriMesh {
     let outer = profile::outer_contour();
     let cuts = profile::cut_planes(&outer);
     // Distal cut: −y ≤ c, posterior cut: −z ≤ c.
-    let lo = DVec3::new(-CONDYLES[0], -cuts[2].1, -cuts[4].1);
-    let hi = DVec3::new(CONDYLES[0], y_top(), outer.support([1.0, 0.0]));
-    // A fractional offset keeps nodes off the flat faces (no systematic zero values).
-    let grid_origin = lo - DVec3::new(2.0 - 0.17, 2.0 - 0.31, 2.0 - 0.43) * h;
-    let count = |extent: f64, h: f64| (extent / h).ceil() as usize + 5;
-    let size = hi - lo;
-    let grid = Grid {
-        origin: grid_origin,
-        step: h,
-        n: [count(size.x, h.x), count(size.y, h.y), count(size.z, h.z)],
+    let sampling = Sampling {
+        lo: DVec3::new(-CONDYLES[0], -cuts[2].1, -cuts[4].1),
+        hi: DVec3::new(CONDYLES[0], y_top(), outer.support([1.0, 0.0])),
+        step: DVec3::from_array(GRID_STEP_MM),
+        offset: DVec3::new(0.17, 0.31, 0.43),
     };
-    let values = sample(&grid, f);
-    // The grid encloses the solid with a margin of two steps, so the surface always closes.
-    let surface =
-        marching_tetrahedra(&grid, &values).unwrap_or_else(|e| panic!("distal femur grid: {e}"));
-    TriMesh {
-        vertices: surface
-            .vertices
-            .iter()
-            .map(|v| (*v - origin).as_vec3().to_array())
-            .collect(),
-        triangles: surface.triangles,
-    }
+    polygonise(f, &sampling, origin, "distal femur")
 }
 
 #[cfg(test)]

@@ -8,9 +8,14 @@ pub mod calibration_box;
 pub mod confine;
 pub mod femoral;
 pub mod femur;
+pub(crate) mod implicit;
 pub mod isosurface;
 pub mod mesh;
 pub mod mesh_io;
+#[cfg(test)]
+pub(crate) mod test_support;
+pub mod tibia;
+pub mod tibial;
 pub mod volume;
 
 use std::path::PathBuf;

@@ -4,11 +4,13 @@
 use std::sync::OnceLock;
 
 use glam::DVec3;
-use sha2::{Digest, Sha256};
 
 use super::*;
-use crate::geometry::point_triangle_distance;
 use crate::phantom::femoral::{FemoralComponent, femoral_component};
+use crate::phantom::test_support::{
+    Nearby, assert_closed_genus_zero, assert_shipped, closest_approach, cortex_mm, inside,
+    slab_extent, thinnest_wall,
+};
 use crate::trace::MeshBvh;
 
 fn femur() -> &'static DistalFemur {
@@ -21,133 +23,11 @@ fn component() -> &'static FemoralComponent {
     C.get_or_init(femoral_component)
 }
 
-fn vertices(m: &TriMesh) -> impl Iterator<Item = DVec3> + '_ {
-    m.vertices
-        .iter()
-        .map(|v| DVec3::from_array(v.map(f64::from)))
-}
-
-/// Whether `p` is inside the closed mesh of `bvh` (parity of crossings along a long segment in
-/// a direction no grid axis or diagonal shares).
-fn inside(bvh: &MeshBvh, p: DVec3) -> bool {
-    let dir = DVec3::new(0.3127, 0.8311, 0.4597) * 1000.0;
-    bvh.segment_crossings(p, dir).len() % 2 == 1
-}
-
-/// Triangles bucketed in a uniform grid, for distances up to a small radius.
-struct Nearby {
-    corners: Vec<[DVec3; 3]>,
-    lo: DVec3,
-    cell_mm: f64,
-    dims: [usize; 3],
-    buckets: Vec<Vec<u32>>,
-}
-
-impl Nearby {
-    fn new(m: &TriMesh, cell_mm: f64) -> Nearby {
-        let (lo, hi) = m.bounds_mm();
-        let lo = lo - DVec3::splat(cell_mm);
-        let dims = ((hi - lo) / cell_mm)
-            .ceil()
-            .as_uvec3()
-            .to_array()
-            .map(|d| d as usize + 2);
-        let mut buckets = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
-        let corners: Vec<[DVec3; 3]> = m
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| DVec3::from_array(m.vertices[i as usize].map(f64::from))))
-            .collect();
-        let cell = |p: DVec3| {
-            ((p - lo) / cell_mm)
-                .floor()
-                .as_uvec3()
-                .to_array()
-                .map(|c| c as usize)
-        };
-        for (t, c) in corners.iter().enumerate() {
-            let (a, b) = (
-                cell(c[0].min(c[1]).min(c[2])),
-                cell(c[0].max(c[1]).max(c[2])),
-            );
-            for k in a[2]..=b[2] {
-                for j in a[1]..=b[1] {
-                    for i in a[0]..=b[0] {
-                        buckets[i + dims[0] * (j + dims[1] * k)].push(t as u32);
-                    }
-                }
-            }
-        }
-        Nearby {
-            corners,
-            lo,
-            cell_mm,
-            dims,
-            buckets,
-        }
-    }
-
-    /// Distance from `p` to the nearest triangle, or `radius` if none is closer.
-    fn distance_within(&self, p: DVec3, radius: f64) -> f64 {
-        let cell = |p: DVec3, d: usize| {
-            let c = ((p - self.lo) / self.cell_mm).floor();
-            (c.to_array()[d].max(0.0) as usize).min(self.dims[d] - 1)
-        };
-        let (a, b) = (p - DVec3::splat(radius), p + DVec3::splat(radius));
-        let mut best = radius;
-        for k in cell(a, 2)..=cell(b, 2) {
-            for j in cell(a, 1)..=cell(b, 1) {
-                for i in cell(a, 0)..=cell(b, 0) {
-                    for &t in &self.buckets[i + self.dims[0] * (j + self.dims[1] * k)] {
-                        let [u, v, w] = self.corners[t as usize];
-                        best = best.min(point_triangle_distance(p, u, v, w));
-                    }
-                }
-            }
-        }
-        best
-    }
-}
-
-/// Genus-0 connected closed surface check shared by both meshes.
-fn euler_characteristic(m: &TriMesh) -> i64 {
-    m.vertices.len() as i64 - (3 * m.triangles.len() / 2) as i64 + m.triangles.len() as i64
-}
-
 #[test]
 fn both_surfaces_are_closed_outward_genus_zero_and_within_the_triangle_budget() {
     let f = femur();
-    for (name, m) in [("cortical", &f.cortical), ("cancellous", &f.cancellous)] {
-        m.check_closed().unwrap_or_else(|e| panic!("{name}: {e}"));
-        let volume = m.signed_volume_mm3();
-        eprintln!(
-            "{name}: {} triangles, {} vertices, volume {volume:.0} mm³",
-            m.triangles.len(),
-            m.vertices.len()
-        );
-        assert!(volume > 50_000.0, "{name}: volume {volume} mm³");
-        assert_eq!(
-            euler_characteristic(m),
-            2,
-            "{name}: one closed genus-0 surface"
-        );
-        assert!(
-            m.triangles.len() <= 80_000,
-            "{name}: {} triangles",
-            m.triangles.len()
-        );
-    }
-}
-
-/// Extents (x, z) of the vertices of `m` within 1 mm of height `y` (local frame).
-fn slab_extent(m: &TriMesh, y: f64) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in vertices(m).filter(|p| (p.y - y).abs() < 1.0) {
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    (lo, hi)
+    assert_closed_genus_zero("cortical", &f.cortical, 50_000.0, 80_000);
+    assert_closed_genus_zero("cancellous", &f.cancellous, 50_000.0, 80_000);
 }
 
 #[test]
@@ -177,12 +57,7 @@ fn dimensions_follow_the_anatomy() {
     for d in [outer.x, outer.z] {
         assert!((26.0..=30.0).contains(&d), "diaphysis diameter {outer}");
     }
-    for cortex in [
-        i_lo.x - o_lo.x,
-        o_hi.x - i_hi.x,
-        i_lo.z - o_lo.z,
-        o_hi.z - i_hi.z,
-    ] {
+    for cortex in cortex_mm(&f.cortical, &f.cancellous, y) {
         assert!(
             (4.0..=6.0).contains(&cortex),
             "diaphyseal cortex {cortex} mm"
@@ -199,7 +74,7 @@ fn dimensions_follow_the_anatomy() {
         "metaphysis width {}",
         o_hi.x - o_lo.x
     );
-    for cortex in [i_lo.x - o_lo.x, o_hi.x - i_hi.x] {
+    for cortex in cortex_mm(&f.cortical, &f.cancellous, y).into_iter().take(2) {
         assert!(
             (1.0..=1.5).contains(&cortex),
             "metaphyseal cortex {cortex} mm"
@@ -258,72 +133,25 @@ fn the_bone_sits_on_the_five_cuts_with_the_gap() {
 
 #[test]
 fn the_bone_never_overlaps_the_metal() {
-    let metal_mesh = &component().mesh;
-    let bone_mesh = &femur().cortical;
-    let (metal, bone) = (MeshBvh::new(metal_mesh), MeshBvh::new(bone_mesh));
-    let near_metal = Nearby::new(metal_mesh, 2.0);
-    let mut closest = (f64::INFINITY, DVec3::ZERO);
-    for p in vertices(bone_mesh) {
-        assert!(!inside(&metal, p), "bone vertex {p} is inside the metal");
-        let d = near_metal.distance_within(p, 1.0);
-        if d < closest.0 {
-            closest = (d, p);
-        }
-    }
+    let closest = closest_approach(&femur().cortical, &component().mesh, 1.0);
     eprintln!(
-        "closest bone vertex to the metal: {:.4} mm at {}",
+        "closest bone point to the metal: {:.4} mm at {}",
         closest.0, closest.1
     );
     // 0.1 mm on the flat cuts; at the edges between cuts the metal's chords (its 1 mm fillets
     // polygonised on a 0.9 mm grid) come a little closer.
     assert!(
         closest.0 >= 0.05,
-        "bone vertex {} is {} mm from the metal",
+        "bone point {} is {} mm from the metal",
         closest.1,
         closest.0
     );
-    // And no point of the metal (vertices, triangle centroids) lies in the bone.
-    for t in &metal_mesh.triangles {
-        let [a, b, c] =
-            t.map(|i| DVec3::from_array(metal_mesh.vertices[i as usize].map(f64::from)));
-        for p in [a, (a + b + c) / 3.0] {
-            assert!(!inside(&bone, p), "metal point {p} is inside the bone");
-        }
-    }
 }
 
 #[test]
 fn the_cancellous_region_is_inside_with_a_wall_of_at_least_0_8_mm() {
-    let f = femur();
-    let cortical = MeshBvh::new(&f.cortical);
-    let (near_outer, near_inner) = (
-        Nearby::new(&f.cortical, 2.0),
-        Nearby::new(&f.cancellous, 2.0),
-    );
-    let mut thinnest = (f64::INFINITY, DVec3::ZERO);
-    for p in vertices(&f.cancellous) {
-        assert!(
-            inside(&cortical, p),
-            "cancellous vertex {p} is outside the cortical surface"
-        );
-        let d = near_outer.distance_within(p, 1.0);
-        if d < thinnest.0 {
-            thinnest = (d, p);
-        }
-    }
-    for p in vertices(&f.cortical) {
-        let d = near_inner.distance_within(p, 1.0);
-        if d < thinnest.0 {
-            thinnest = (d, p);
-        }
-    }
-    eprintln!("thinnest wall: {:.3} mm at {}", thinnest.0, thinnest.1);
-    assert!(
-        thinnest.0 >= 0.8,
-        "wall of {} mm at {}",
-        thinnest.0,
-        thinnest.1
-    );
+    let (wall, at) = thinnest_wall(&femur().cortical, &femur().cancellous);
+    assert!(wall >= 0.8, "wall of {wall} mm at {at}");
 }
 
 #[test]
@@ -348,17 +176,9 @@ fn the_beads_lie_in_the_cancellous_bone_with_clearance() {
     }
 }
 
-fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 #[test]
 fn the_femur_is_deterministic_and_the_shipped_models_match_the_code() {
     assert_eq!(&distal_femur(), femur());
-    let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
     for (file, mesh) in [
         (
             "scenarios/models/distal_femur_cortical.glb",
@@ -369,16 +189,6 @@ fn the_femur_is_deterministic_and_the_shipped_models_match_the_code() {
             &femur().cancellous,
         ),
     ] {
-        let path = root.join(file);
-        let expected = crate::phantom::mesh_io::glb_bytes(mesh).unwrap();
-        let shipped = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        assert_eq!(
-            sha256_hex(&shipped),
-            sha256_hex(&expected),
-            "{file} is out of date: run `cargo run --release --example distal_femur -- scenarios/models`"
-        );
-        let loaded = crate::phantom::mesh_io::load_mesh(&path, 1000.0).unwrap();
-        loaded.check_closed().unwrap();
-        assert_eq!(&loaded.triangles, &mesh.triangles);
+        assert_shipped(file, mesh, "distal_femur");
     }
 }
