@@ -141,6 +141,7 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
                 sampling: &sampling,
                 unsharp: &unsharp,
                 electronic_key: &electronic_key,
+                pulse: &[],
             },
         )
         .unwrap_or_else(|e| panic!("{rel}: {e}"))

@@ -602,9 +602,10 @@ fn drop_binary_levels(resolved: &Scenario, value: &mut toml::Table) {
     }
 }
 
-/// The nominal set-up of a blind images folder as TOML: the scenario as run without `seed` and
-/// without any `randomize` table (the random ranges), so neither the draws nor the noise can be
-/// regenerated from it. `rsasim reconstruct` reads it like any `scenario.toml` (a missing seed
+/// The nominal set-up of a blind images folder as TOML: the scenario as run without `seed`,
+/// without any `randomize` table (the random ranges) and without any phantom's `motion` (a
+/// sequence's kinematics), so neither the draws, the motion nor the noise can be regenerated
+/// from it. `rsasim reconstruct` reads it like any `scenario.toml` (a missing seed
 /// reads as 0, missing ranges as none).
 pub fn nominal_scenario_text(resolved: &Scenario) -> String {
     let mut value = toml::Table::try_from(resolved).expect("scenario serialises");
@@ -617,6 +618,8 @@ pub fn nominal_scenario_text(resolved: &Scenario) -> String {
             for item in items {
                 if let toml::Value::Table(t) = item {
                     t.remove("randomize");
+                    // A sequence's keyframes are its kinematics: truth.
+                    t.remove("motion");
                 }
             }
         }
@@ -638,6 +641,44 @@ struct RunFiles {
 /// Longer side of a PNG preview, pixels.
 pub const PREVIEW_MAX_SIDE_PX: u32 = 1024;
 
+/// The objects of the phantoms `in_beam` of `run` for binary-mode tracing: every bead, every
+/// mesh at its phantom's pose, every elliptic cylinder.
+fn objects_of<'a>(
+    run: &Run,
+    in_beam: &[usize],
+    models: &[phantom::PhantomModel],
+    bvhs: &'a [Option<Arc<MeshBvh>>],
+) -> Vec<Object<'a>> {
+    let mut objects = Vec::new();
+    for &pi in in_beam {
+        let state = &run.phantoms[pi];
+        objects.extend(state.markers.iter().map(|m| Object::Sphere {
+            centre_mm: m.position_mm,
+            radius_mm: m.diameter_mm / 2.0,
+        }));
+        if let Some(bvh) = &bvhs[pi] {
+            objects.push(Object::Mesh {
+                bvh,
+                pose: state.pose(),
+            });
+        }
+        for v in &models[pi].volumes {
+            if let phantom::VolumeShape::EllipticCylinder {
+                radii_mm,
+                half_length_mm,
+            } = v.shape
+            {
+                objects.push(Object::EllipticCylinder {
+                    pose: state.pose(),
+                    radii_mm,
+                    half_length_mm,
+                });
+            }
+        }
+    }
+    objects
+}
+
 /// One run folder: every image in every format, and `truth.json` (in `truth_root` when given).
 fn write_run(
     plan: &Plan,
@@ -658,41 +699,39 @@ fn write_run(
     let truth_root = truth_root.unwrap_or(root);
     let truth_dir = truth_root.join("runs").join(&run.id);
     std::fs::create_dir_all(&truth_dir)?;
+    // A frame of a sequence whose phantoms move during its pulse: the poses its image is the
+    // mean of (none otherwise), and where each marker's blur begins and ends.
+    let pulse = expand::sequence::pulse_runs(s, models, run);
+    let pulse_ends = expand::sequence::pulse_ends(s, models, run);
     for (exposure_index, exposure) in run.exposures.iter().enumerate() {
         let in_beam = exposure.phantom_indices(models);
-        let mut objects = Vec::new();
-        for &pi in &in_beam {
-            let state = &run.phantoms[pi];
-            objects.extend(state.markers.iter().map(|m| Object::Sphere {
-                centre_mm: m.position_mm,
-                radius_mm: m.diameter_mm / 2.0,
-            }));
-            if let Some(bvh) = &bvhs[pi] {
-                objects.push(Object::Mesh {
-                    bvh,
-                    pose: state.pose(),
-                });
-            }
-            for v in &models[pi].volumes {
-                if let phantom::VolumeShape::EllipticCylinder {
-                    radii_mm,
-                    half_length_mm,
-                } = v.shape
-                {
-                    objects.push(Object::EllipticCylinder {
-                        pose: state.pose(),
-                        radii_mm,
-                        half_length_mm,
-                    });
-                }
-            }
-        }
+        let objects = objects_of(run, &in_beam, models, bvhs);
+        // The exposure is blurred when a phantom in its beam moves during the pulse.
+        let moving = |r: &Run| in_beam.iter().any(|&pi| r.phantoms[pi] != run.phantoms[pi]);
+        let pulse_all: &[Run] = &pulse;
+        let pulse: &[Run] = if pulse.iter().any(moving) {
+            &pulse
+        } else {
+            &[]
+        };
+        let pulse_objects: Vec<Vec<Object>> = pulse
+            .iter()
+            .map(|r| objects_of(r, &in_beam, models, bvhs))
+            .collect();
         let parts = match &plan.setup {
             Some(setup) => Some(
                 attenuation::parts(s, setup, models, bvhs, run, exposure)
                     .map_err(|(_, e)| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?,
             ),
             None => None,
+        };
+        let pulse_parts = match &plan.setup {
+            Some(setup) => pulse
+                .iter()
+                .map(|r| attenuation::parts(s, setup, models, bvhs, r, exposure))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|(_, e)| std::io::Error::new(std::io::ErrorKind::InvalidData, e))?,
+            None => Vec::new(),
         };
         for (detector_index, det) in run.detectors.iter().enumerate() {
             let frame = det.frame();
@@ -731,6 +770,7 @@ fn write_run(
                             sampling,
                             unsharp: &unsharp,
                             electronic_key: &electronic_key,
+                            pulse: &pulse_parts,
                         },
                     )
                     .map_err(|e| {
@@ -757,6 +797,19 @@ fn write_run(
                         Some(image.saturated as u64),
                     )
                 }
+                _ if !pulse_objects.is_empty() => (
+                    crate::binary::noisy_image_in_motion(
+                        &frame,
+                        source,
+                        &pulse_objects,
+                        sampling,
+                        run.noise_level,
+                        det.i_max(),
+                        &key,
+                    ),
+                    None,
+                    None,
+                ),
                 _ => (
                     crate::binary::noisy_image(
                         &frame,
@@ -839,6 +892,21 @@ fn write_run(
                             )),
                         },
                         metal_fraction: seen.map(|b| b.metal_fraction),
+                        blur_px: pulse_ends.as_ref().map(|(start, end)| {
+                            // The projected centre's path over the pulse: through its place at
+                            // the start, at each of the pulse's poses, and at the end.
+                            let at = |r: &Run| {
+                                frame
+                                    .project(source, r.phantoms[pi].markers[bi].position_mm)
+                                    .expect("checked: beads lie between source and detector")
+                            };
+                            let points: Vec<_> = std::iter::once(start)
+                                .chain(pulse_all.iter())
+                                .chain(std::iter::once(end))
+                                .map(at)
+                                .collect();
+                            points.windows(2).map(|p| (p[1] - p[0]).length()).sum()
+                        }),
                     }
                 })
                 .collect();

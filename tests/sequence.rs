@@ -155,3 +155,177 @@ fn the_reference_program_tracks_the_moving_component_frame_by_frame() {
         assert!(cell.rms < 0.1, "{cell:?}");
     }
 }
+
+/// A 2 mm bead 1000 mm from a point source and 1200 mm from the detector (magnification 1.2,
+/// 0.5 mm pixels: a disc of radius 2.4 px) moving along x at 200 mm/s (two keyframes: constant
+/// speed), seen in frame 1 (t = 0.1 s) with a 10 ms pulse of 8 poses; beside it a bead that
+/// stands still. No noise.
+const BLUR: &str = r#"name = "blur"
+[protocol]
+noise_levels = [0.0]
+runs_per_level = 1
+[sequence]
+frames = 2
+frame_rate_hz = 10
+pulse_ms = 10
+pulse_samples = 8
+[output]
+formats = ["tiff"]
+tiff_compression = "none"
+[[sources]]
+id = "s"
+position_mm = [0, 0, 1000]
+[[detectors]]
+id = "d"
+source = "s"
+pixels = [200, 200]
+pixel_pitch_mm = [0.5, 0.5]
+bpp = 16
+position_mm = [0, 0, -200]
+[[phantoms]]
+id = "moving"
+[[phantoms.beads]]
+id = "M"
+position_mm = [0, 0, 0]
+diameter_mm = 2
+[phantoms.motion]
+keyframes = [{ time_s = 0 }, { time_s = 1, position_mm = [200, 0, 0] }]
+[[phantoms]]
+id = "still"
+[[phantoms.beads]]
+id = "S"
+position_mm = [-20, 20, 0]
+diameter_mm = 2
+[[exposures]]
+id = "e"
+phantoms = ["moving", "still"]
+"#;
+
+#[test]
+fn a_bead_moving_during_the_pulse_is_the_mean_of_its_poses_by_hand() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = tmp.path().join("blur.toml");
+    std::fs::write(&scenario, BLUR).unwrap();
+    let out = tmp.path().join("out");
+    rsasim_ok(&[scenario.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let t = truths(&out);
+    let truth = &t[1].1;
+    let markers = &truth.images[0].markers;
+    let (moving, still) = (&markers[0], &markers[1]);
+    // By hand: the bead's centre at t = 0.1 s is x = 20 mm, projected to (1.2·20 + 50)/0.5 =
+    // 148 px; during the 10 ms pulse it moves 2 mm, 2.4 mm on the detector: 4.8 px.
+    assert!((moving.pixel[0] - 148.0).abs() < 1e-9, "{:?}", moving.pixel);
+    assert!((moving.pixel[1] - 100.0).abs() < 1e-9, "{:?}", moving.pixel);
+    assert!(
+        (moving.blur_px.unwrap() - 4.8).abs() < 1e-9,
+        "{:?}",
+        moving.blur_px
+    );
+    assert_eq!(still.blur_px, Some(0.0));
+    let (w, _, pixels) = common::read_tiff(&t[1].0.join("e-d.tiff"));
+    let value = |i: usize, j: usize| pixels[j * w as usize + i];
+    // Row 100 (pixel centres 0.5 px below the bead's track): a pixel is covered at pose k when
+    // its centre lies within the half-chord √(2.4² − 0.5²) of x_k = 148 + ((k + ½)/8 − ½)·4.8.
+    let half_chord = (2.4f64 * 2.4 - 0.25).sqrt();
+    let (mut checked, mut partial) = (0, 0);
+    for i in 135..162 {
+        let u = i as f64 + 0.5;
+        let gaps: Vec<f64> = (0..8)
+            .map(|k| (u - (148.0 + ((k as f64 + 0.5) / 8.0 - 0.5) * 4.8)).abs() - half_chord)
+            .collect();
+        if gaps.iter().any(|g| g.abs() < 0.02) {
+            continue; // a pixel centre on a disc's rim: the projection's ellipticity decides
+        }
+        let covered = gaps.iter().filter(|&&g| g < 0.0).count();
+        let want = (65535.0 * covered as f64 / 8.0 + 0.5) as u16;
+        assert_eq!(value(i, 100), want, "pixel {i}: {covered} of 8 poses");
+        checked += 1;
+        partial += usize::from(covered > 0 && covered < 8);
+    }
+    assert!(
+        checked >= 20 && partial >= 4,
+        "{checked} pixels, {partial} partly covered"
+    );
+    // The bead that stands still is sharp: covered or not.
+    let (si, sj) = (still.pixel[0] as usize, still.pixel[1] as usize);
+    for j in sj - 4..sj + 4 {
+        for i in si - 4..si + 4 {
+            assert!(
+                matches!(value(i, j), 0 | 65535),
+                "({i}, {j}): {}",
+                value(i, j)
+            );
+        }
+    }
+}
+
+#[test]
+fn in_attenuation_mode_the_blur_changes_only_the_pixels_the_bead_sweeps() {
+    let attenuation = BLUR.replace(
+        "[[sources]]",
+        "[imaging]\nmode = \"attenuation\"\nmas = 10.0\nmax_energy_bins = 24\n[imaging.tube]\nkvp = 80\n[imaging.detector]\nresponse = \"energy_integrating\"\nscintillator = { material = \"csi\", thickness_mm = 0.6 }\n[[sources]]",
+    )
+    .replace("noise_levels = [0.0]", "exposure_levels = [1.0]");
+    let tmp = tempfile::tempdir().unwrap();
+    let image = |text: &str, name: &str| {
+        let scenario = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&scenario, text).unwrap();
+        let out = tmp.path().join(name);
+        rsasim_ok(&[scenario.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+        let t = truths(&out);
+        let (w, h, pixels) = common::read_tiff(&t[1].0.join("e-d.tiff"));
+        (
+            w as usize,
+            h as usize,
+            pixels,
+            t[1].1.images[0].markers[0].blur_px,
+        )
+    };
+    let (w, h, blurred, blur) = image(&attenuation, "blurred");
+    let (_, _, sharp, none) = image(&attenuation.replace("pulse_ms = 10\n", ""), "sharp");
+    assert!(
+        (blur.unwrap() - 4.8).abs() < 1e-9 && none.is_none(),
+        "{blur:?} {none:?}"
+    );
+    // The bead sweeps 145.6 … 150.4 px along u (radius 2.4 px) on rows about 100. Only rows it
+    // crosses change, and in each the first changed pixel lies in the swept disc's box (a row's
+    // quantum noise is one stream, and the Poisson sampler's draws per pixel vary, so the rest of
+    // the row's noise moves on from there).
+    let mut changed = 0;
+    for j in 0..h {
+        let row = |img: &[u16]| img[j * w..(j + 1) * w].to_vec();
+        let (b, s) = (row(&blurred), row(&sharp));
+        if let Some(first) = (0..w).find(|&i| b[i] != s[i]) {
+            changed += 1;
+            assert!(
+                (142..155).contains(&first) && (96..104).contains(&j),
+                "row {j} changes from pixel {first} on, away from the moving bead"
+            );
+        }
+    }
+    assert!(changed >= 4, "{changed} rows changed");
+}
+
+#[test]
+fn a_blind_images_folder_keeps_the_motion_with_the_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = tmp.path().join("blur.toml");
+    std::fs::write(&scenario, BLUR).unwrap();
+    let (images, truth) = (tmp.path().join("images"), tmp.path().join("truth"));
+    rsasim_ok(&[
+        scenario.to_str().unwrap(),
+        "--out",
+        images.to_str().unwrap(),
+        "--truth-dir",
+        truth.to_str().unwrap(),
+    ]);
+    let nominal = std::fs::read_to_string(images.join("scenario.toml")).unwrap();
+    assert!(nominal.contains("[sequence]"), "{nominal}");
+    assert!(
+        !nominal.contains("keyframes") && !nominal.contains("motion"),
+        "{nominal}"
+    );
+    assert!(images.join("runs/n0-r00-f0001/e-d.tiff").is_file());
+    assert!(!images.join("runs/n0-r00-f0001/truth.json").exists());
+    assert!(truth.join("runs/n0-r00-f0001/truth.json").is_file());
+}

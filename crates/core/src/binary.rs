@@ -7,7 +7,9 @@
 //! - with area sampling or a focal spot: the covered fraction c of every pixel
 //!   ([`crate::sampling::coverage`]) blended with the pixel's noise sample n ([`blend`]):
 //!   `round(c · I_max + (1 − c) · n)`, half up. With one ray per pixel and a point source c is 0
-//!   or 1 and this is the sharp image, byte for byte.
+//!   or 1 and this is the sharp image, byte for byte;
+//! - a frame of a sequence whose objects move during its pulse: c is the mean of the covered
+//!   fractions at the pulse's poses ([`noisy_image_in_motion`]), blended the same way.
 
 use glam::DVec3;
 
@@ -34,6 +36,43 @@ pub fn noisy_image(
     let [w, h] = frame.pixels.map(|n| n as usize);
     let (covered, field) = rayon::join(
         || coverage::coverage(frame, source_mm, objects, sampling),
+        || noise::noise_field(w, h, noise_level, i_max, key),
+    );
+    covered
+        .iter()
+        .zip(&field)
+        .map(|(&c, &n)| blend(c, n, i_max))
+        .collect()
+}
+
+/// One noisy binary-mode image of a frame whose objects move during its pulse: `pulse` holds the
+/// objects at each of the pulse's poses (in time order, equal weights), and a pixel's covered
+/// fraction is the mean of its covered fractions at those poses ([`coverage::coverage`], each as
+/// `sampling` says), summed in pose order and divided by their number, then blended with the
+/// noise ([`blend`]) as in [`noisy_image`].
+pub fn noisy_image_in_motion(
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    pulse: &[Vec<Object>],
+    sampling: &Sampling,
+    noise_level: f64,
+    i_max: u16,
+    key: &NoiseKey,
+) -> Vec<u16> {
+    let [w, h] = frame.pixels.map(|n| n as usize);
+    let (covered, field) = rayon::join(
+        || {
+            let mut sum = vec![0.0; w * h];
+            for objects in pulse {
+                let c = coverage::coverage(frame, source_mm, objects, sampling);
+                for (s, c) in sum.iter_mut().zip(&c) {
+                    *s += c;
+                }
+            }
+            let k = pulse.len().max(1) as f64;
+            sum.iter_mut().for_each(|s| *s /= k);
+            sum
+        },
         || noise::noise_field(w, h, noise_level, i_max, key),
     );
     covered

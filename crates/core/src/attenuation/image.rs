@@ -53,13 +53,17 @@ pub struct Formation<'a> {
     pub unsharp: &'a Unsharpness,
     /// The electronic noise's key (`NoiseKey::derive_electronic`).
     pub electronic_key: &'a NoiseKey,
+    /// A frame of a sequence whose parts move during its pulse: the parts at each of the pulse's
+    /// poses (in time order, equal weights); the expected image is the mean of theirs. Empty
+    /// otherwise.
+    pub pulse: &'a [Vec<Part<'a>>],
 }
 
 impl Formation<'_> {
-    /// One ray to each pixel centre from a point source and nothing beyond quantum noise: the
-    /// sharp image, rendered in one pass.
+    /// One ray to each pixel centre from a point source, nothing beyond quantum noise, no
+    /// motion: the sharp image, rendered in one pass.
     fn is_sharp(&self) -> bool {
-        self.sampling.is_point() && *self.unsharp == Unsharpness::default()
+        self.sampling.is_point() && *self.unsharp == Unsharpness::default() && self.pulse.is_empty()
     }
 }
 
@@ -99,6 +103,44 @@ pub fn render(
     let scene = scene_of(setup, frame, &layers, &fluence);
     let rendered = if formation.is_sharp() {
         response::render(&beam, &detector, &scene, key)
+    } else if !formation.pulse.is_empty() {
+        // Motion blur: the mean of the expected images at the pulse's poses, in pose order.
+        let mut sum: Option<response::Expected> = None;
+        for pose_parts in formation.pulse {
+            let at = Exposure {
+                parts: pose_parts,
+                ..*exposure
+            };
+            let e = expected_of(&at, &beam, &detector, formation.sampling);
+            match &mut sum {
+                None => sum = Some(e),
+                Some(total) => {
+                    for (a, b) in [
+                        (&mut total.quanta, &e.quanta),
+                        (&mut total.energy_kev, &e.energy_kev),
+                        (&mut total.open_signal, &e.open_signal),
+                    ] {
+                        a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    }
+                }
+            }
+        }
+        let mut mean = sum.expect("a pulse has poses");
+        let k = formation.pulse.len() as f64;
+        for image in [
+            &mut mean.quanta,
+            &mut mean.energy_kev,
+            &mut mean.open_signal,
+        ] {
+            image.iter_mut().for_each(|x| *x /= k);
+        }
+        response::render_expected(
+            &detector,
+            &mean,
+            formation.unsharp,
+            key,
+            formation.electronic_key,
+        )
     } else {
         let expected = if formation.sampling.is_point() {
             response::expected(&beam, &detector, &scene)
@@ -199,6 +241,33 @@ fn net_lengths(layers: &[Layer], m: usize, w: usize, h: usize) -> Vec<f64> {
 /// Fails when some pixel's net length of a material is below −[`NEST_TOLERANCE_MM`]: the solids
 /// declared inside it cross more of it than it has there. Looks only at the rows of the negative
 /// layers; reports the first such pixel by material, then row, then column.
+/// The expected image of `exposure` as `sampling` says (one ray per pixel centre, adaptive or
+/// full sampling), before the detector's noise.
+fn expected_of(
+    exposure: &Exposure,
+    beam: &response::Beam,
+    detector: &response::DetectorModel,
+    sampling: &Sampling,
+) -> response::Expected {
+    if sampling.is_point() {
+        let Exposure {
+            setup,
+            parts,
+            frame,
+            source_mm,
+        } = *exposure;
+        let shadows = shadows_of(parts, frame, source_mm);
+        let layers = layers_of(parts, &shadows);
+        let fluence = response::PointSourceFluence::new(frame, source_mm);
+        let scene = scene_of(setup, frame, &layers, &fluence);
+        response::expected(beam, detector, &scene)
+    } else if sampling.adaptive {
+        super::sampled::expected_adaptive_of(exposure, beam, detector, sampling)
+    } else {
+        super::sampled::expected(exposure, beam, detector, sampling)
+    }
+}
+
 fn check_nesting(setup: &Setup, parts: &[Part], layers: &[Layer], w: usize) -> Result<(), String> {
     for m in 0..setup.materials.len() {
         let Some(rows) = layers

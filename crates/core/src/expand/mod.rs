@@ -119,7 +119,7 @@ pub fn expand_run(
     level: Level,
     run_index: u32,
 ) -> Run {
-    drawn_run(s, models, level_index, level, run_index, None)
+    drawn_run(s, models, level_index, level, run_index, None, 0.0)
 }
 
 /// Frame `frame` of the sequence that run `run_index` of level `level_index` becomes
@@ -132,10 +132,31 @@ pub fn expand_frame(
     run_index: u32,
     frame: u32,
 ) -> Run {
-    drawn_run(s, models, level_index, level, run_index, Some(frame))
+    drawn_run(s, models, level_index, level, run_index, Some(frame), 0.0)
 }
 
-/// The run, or one frame of its sequence, from its geometry stream.
+/// Frame run `run` (from [`expand_frame`]) with every moving phantom where it is `offset_s`
+/// seconds after the frame's time: one pose inside its pulse ([`sequence::pulse_runs`]). Same id,
+/// same frame record (the frame's own time). `None` for a run that is no frame.
+pub fn frame_at(s: &Scenario, models: &[PhantomModel], run: &Run, offset_s: f64) -> Option<Run> {
+    let frame = run.frame.as_ref()?.index;
+    let level = Level {
+        noise_level: run.noise_level,
+        exposure_factor: run.exposure_factor,
+    };
+    Some(drawn_run(
+        s,
+        models,
+        run.noise_level_index,
+        level,
+        run.run_index,
+        Some(frame),
+        offset_s,
+    ))
+}
+
+/// The run, or one frame of its sequence (its moving phantoms `offset_s` after the frame's
+/// time), from its geometry stream.
 fn drawn_run(
     s: &Scenario,
     models: &[PhantomModel],
@@ -143,6 +164,7 @@ fn drawn_run(
     level: Level,
     run_index: u32,
     frame: Option<u32>,
+    offset_s: f64,
 ) -> Run {
     let label = geometry_stream_label(s.seed, level_index, run_index);
     let drawn = draw(s, &mut random::stream(&label));
@@ -150,7 +172,11 @@ fn drawn_run(
     let state = frame.and_then(|k| sequence::frame_state(s, &id, k));
     let (phantoms, id) = match (&state, frame) {
         (Some(f), Some(k)) => (
-            fixed_poses(s, &drawn.phantoms, &sequence::motion_poses(s, f.time_s)),
+            fixed_poses(
+                s,
+                &drawn.phantoms,
+                &sequence::motion_poses(s, f.time_s + offset_s),
+            ),
             sequence::frame_run_id(&id, k, s.frames_per_run()),
         ),
         _ => (fixed_poses(s, &drawn.phantoms, &still(s)), id),

@@ -20,8 +20,9 @@
 //! `fixed_to` a parent, the parent's pose at `t` composed with its place on the parent. So a
 //! tibia fixed to a moving femur with a motion of its own moves relative to the femur by `M(t)`.
 
-use super::FrameState;
+use super::{FrameState, Run, frame_at};
 use crate::geometry::Pose;
+use crate::phantom::PhantomModel;
 use crate::scenario::Scenario;
 
 /// The digits of a frame number in run ids: at least four, more when the last frame needs them.
@@ -66,6 +67,38 @@ pub fn frame_state(s: &Scenario, sequence_id: &str, frame: u32) -> Option<FrameS
         count: q.frames,
         time_s: frame_time_s(q.frame_rate_hz, frame),
     })
+}
+
+/// The frame run `run` at each pose of its pulse (`Sequence::pulse_offsets_s`), in time order:
+/// the poses its image is the mean of. Empty when the frame has no motion blur: no pulse, one
+/// sample, no frame, or no phantom that moves during the pulse.
+pub fn pulse_runs(s: &Scenario, models: &[PhantomModel], run: &Run) -> Vec<Run> {
+    let Some(q) = &s.sequence else {
+        return Vec::new();
+    };
+    let runs: Vec<Run> = q
+        .pulse_offsets_s()
+        .into_iter()
+        .filter_map(|dt| frame_at(s, models, run, dt))
+        .collect();
+    match (runs.first(), runs.last()) {
+        (Some(a), Some(b)) if a.phantoms != b.phantoms => runs,
+        _ => Vec::new(),
+    }
+}
+
+/// The frame run `run` at the start and at the end of its pulse: where the blur of each marker
+/// begins and ends. `None` without a pulse.
+pub fn pulse_ends(s: &Scenario, models: &[PhantomModel], run: &Run) -> Option<(Run, Run)> {
+    let q = s.sequence.as_ref()?;
+    if !(q.pulse_ms > 0.0) {
+        return None;
+    }
+    let half_s = q.pulse_ms / 2000.0;
+    Some((
+        frame_at(s, models, run, -half_s)?,
+        frame_at(s, models, run, half_s)?,
+    ))
 }
 
 #[cfg(test)]

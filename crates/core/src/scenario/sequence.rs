@@ -18,7 +18,43 @@ pub struct Sequence {
     pub frames: u32,
     /// Frames per second, > 0 (e.g. 100 for dynamic RSA, up to 1000 for videoradiography).
     pub frame_rate_hz: f64,
+    /// Exposure (pulse) time of each frame, ms, centred on the frame's time; at most the frame
+    /// period `1000 / frame_rate_hz`. A phantom that moves during the pulse is blurred: the
+    /// image is the mean of the images at `pulse_samples` poses inside the pulse. Default 0 (an
+    /// instantaneous exposure: no motion blur).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub pulse_ms: f64,
+    /// Poses per pulse for the motion blur, 1 to 64, at the middles of equal parts of the pulse
+    /// (times `t + ((j + ½)/K − ½)·pulse`, j = 0 … K − 1). Default 5.
+    #[serde(default = "Sequence::default_pulse_samples")]
+    pub pulse_samples: u32,
 }
+
+impl Sequence {
+    fn default_pulse_samples() -> u32 {
+        5
+    }
+
+    /// The offsets from a frame's time of the poses its image is the mean of, s: none without
+    /// motion blur (no pulse, or one sample).
+    pub fn pulse_offsets_s(&self) -> Vec<f64> {
+        let k = self.pulse_samples;
+        if !(self.pulse_ms > 0.0) || k <= 1 {
+            return Vec::new();
+        }
+        let pulse_s = self.pulse_ms / 1000.0;
+        (0..k)
+            .map(|j| ((f64::from(j) + 0.5) / f64::from(k) - 0.5) * pulse_s)
+            .collect()
+    }
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// Most poses per pulse.
+pub const MAX_PULSE_SAMPLES: u32 = 64;
 
 /// How a phantom moves during a sequence: its pose over time relative to the pose it would have
 /// without motion (its nominal pose with this run's random offsets, or, when `fixed_to`

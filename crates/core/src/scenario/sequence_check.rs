@@ -35,6 +35,28 @@ impl Checker<'_> {
                     ),
                     "frames per second, e.g. frame_rate_hz = 100",
                 );
+            } else {
+                let period_ms = 1000.0 / q.frame_rate_hz;
+                if !(q.pulse_ms.is_finite() && q.pulse_ms >= 0.0 && q.pulse_ms <= period_ms) {
+                    self.err(
+                        path.key("pulse_ms"),
+                        format!(
+                            "pulse_ms must lie in 0 to the frame period {period_ms} ms, got {}",
+                            q.pulse_ms
+                        ),
+                        "the exposure time of one frame in milliseconds, e.g. pulse_ms = 1 (0: no motion blur)",
+                    );
+                }
+            }
+            if !(1..=MAX_PULSE_SAMPLES).contains(&q.pulse_samples) {
+                self.err(
+                    path.key("pulse_samples"),
+                    format!(
+                        "pulse_samples must lie in 1 to {MAX_PULSE_SAMPLES}, got {}",
+                        q.pulse_samples
+                    ),
+                    "poses per pulse for the motion blur, e.g. pulse_samples = 5",
+                );
             }
         }
         for (i, ph) in s.phantoms.iter().enumerate() {
@@ -144,6 +166,19 @@ position_mm = [0, 0, 0]
             m.iter().any(|x| x.contains("s.toml:20:")
                 && x.contains("`phantoms[0].motion`")
                 && x.contains("a motion needs [sequence]")),
+            "{m:?}"
+        );
+        let m = messages(&format!(
+            "{BASE}[sequence]\nframes = 10\nframe_rate_hz = 100\npulse_ms = 12.5\npulse_samples = 0\n"
+        ));
+        assert!(
+            m.iter().any(|x| x.contains("`sequence.pulse_ms`")
+                && x.contains("pulse_ms must lie in 0 to the frame period 10 ms, got 12.5")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.contains("pulse_samples must lie in 1 to 64, got 0")),
             "{m:?}"
         );
         let m = messages(&format!(

@@ -79,6 +79,12 @@ pub struct ProjectedMarker {
     /// Attenuation mode: the fraction of the bead's shadow pixels whose ray also crosses metal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub metal_fraction: Option<f64>,
+    /// A frame of a sequence with a pulse (`[sequence] pulse_ms`): the length of the path, px,
+    /// its projected centre travels during the pulse (through its places at the start, at each
+    /// of the pulse's poses and at the end): the extent of its motion blur. 0 for a bead that
+    /// does not move.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blur_px: Option<f64>,
 }
 
 /// Reads `runs/<run>/truth.json` of a received folder through the gate (a regular file within the
