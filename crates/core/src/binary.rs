@@ -38,11 +38,7 @@ pub fn noisy_image(
         || coverage::coverage(frame, source_mm, objects, sampling),
         || noise::noise_field(w, h, noise_level, i_max, key),
     );
-    covered
-        .iter()
-        .zip(&field)
-        .map(|(&c, &n)| blend(c, n, i_max))
-        .collect()
+    blended(&covered, &field, i_max)
 }
 
 /// One noisy binary-mode image of a frame whose objects move during its pulse: `pulse` holds the
@@ -75,11 +71,7 @@ pub fn noisy_image_in_motion(
         },
         || noise::noise_field(w, h, noise_level, i_max, key),
     );
-    covered
-        .iter()
-        .zip(&field)
-        .map(|(&c, &n)| blend(c, n, i_max))
-        .collect()
+    blended(&covered, &field, i_max)
 }
 
 /// One noisy binary-mode image from one ray per pixel centre: the clean projection
@@ -102,6 +94,15 @@ pub fn sharp_noisy_image(
     );
     noise::overlay(&clean, &mut field);
     field
+}
+
+/// Every pixel's covered fraction blended with its noise sample ([`blend`]).
+fn blended(covered: &[f64], field: &[u16], i_max: u16) -> Vec<u16> {
+    covered
+        .iter()
+        .zip(field)
+        .map(|(&c, &n)| blend(c, n, i_max))
+        .collect()
 }
 
 /// A pixel value from its covered fraction `c` and its background noise sample `n`:

@@ -250,17 +250,7 @@ fn expected_of(
     sampling: &Sampling,
 ) -> response::Expected {
     if sampling.is_point() {
-        let Exposure {
-            setup,
-            parts,
-            frame,
-            source_mm,
-        } = *exposure;
-        let shadows = shadows_of(parts, frame, source_mm);
-        let layers = layers_of(parts, &shadows);
-        let fluence = response::PointSourceFluence::new(frame, source_mm);
-        let scene = scene_of(setup, frame, &layers, &fluence);
-        response::expected(beam, detector, &scene)
+        super::sampled::expected_sharp(exposure, beam, detector).1
     } else if sampling.adaptive {
         super::sampled::expected_adaptive_of(exposure, beam, detector, sampling)
     } else {

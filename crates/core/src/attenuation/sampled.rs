@@ -78,6 +78,17 @@ pub fn expected_adaptive_of(
     detector: &DetectorModel,
     sampling: &Sampling,
 ) -> Expected {
+    let (shadows, sharp) = expected_sharp(exposure, beam, detector);
+    expected_adaptive(exposure, &shadows, beam, detector, sampling, sharp)
+}
+
+/// The sharp expected image (one ray per pixel centre from the spot's centre) of the parts, and
+/// every part's path lengths on those rays (in part order).
+pub fn expected_sharp(
+    exposure: &Exposure,
+    beam: &Beam,
+    detector: &DetectorModel,
+) -> (Vec<Option<PathLengths>>, Expected) {
     let Exposure {
         setup,
         parts,
@@ -89,7 +100,7 @@ pub fn expected_adaptive_of(
     let fluence = PointSourceFluence::new(frame, source_mm);
     let scene = scene_of(setup, frame, &layers, &fluence);
     let sharp = response::expected(beam, detector, &scene);
-    expected_adaptive(exposure, &shadows, beam, detector, sampling, sharp)
+    (shadows, sharp)
 }
 
 /// The same image by adaptive sampling (`crate::sampling::adaptive`): `sharp` is the expected
