@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Attenuation mode against its peers, in one command (see BENCHMARKS.md, "Attenuation mode"):
+# Attenuation mode against its peers, in one command (see docs/src/results/peers.md):
 #
 #   bench/attenuation.sh [--venv DIR]
 #

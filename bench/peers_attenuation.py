@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Attenuation mode against its peers, on the scenes `examples/attenuation_bench.rs` exports
-(DIR/attenuation.json). Driven by bench/attenuation.sh; see BENCHMARKS.md, "Attenuation mode".
+(DIR/attenuation.json). Driven by bench/attenuation.sh; see docs/src/results/peers.md.
 
 Sub-commands:
 

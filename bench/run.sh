@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# rsasim's benchmark suite, peers included, in one command (see BENCHMARKS.md):
+# rsasim's benchmark suite, peers included, in one command (see docs/src/development/benchmarks.md):
 #
 #   bench/run.sh [--no-criterion] [--no-protocol] [--no-peers]
 #

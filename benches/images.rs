@@ -3,7 +3,7 @@
 //!
 //! Run with `cargo bench --bench images` (release profile, one thread: the protocol runs images
 //! in parallel, one per core). The criterion benches of the projector and the noise, on the same
-//! run and detector, are in `benches/projector.rs`; `bench/run.sh` runs both (BENCHMARKS.md).
+//! run and detector, are in `benches/projector.rs`; `bench/run.sh` runs both (docs/src/development/benchmarks.md).
 
 #[path = "common/scenes.rs"]
 mod scenes;

@@ -1,5 +1,5 @@
 //! Size against time of the deflate encoders rsasim could use for its TIFF and EXR files, on a
-//! protocol's own images (a measurement, not a test; BENCHMARKS.md "Encoders").
+//! protocol's own images (a measurement, not a test; docs/src/results/speed.md, "The EXR encoder").
 //!
 //! It reads `runs/n{0..4}-r00/{calibration,model}-det1.tiff` of a written biplanar protocol (the
 //! five noise levels, both exposures: 10 images of 1440²), rebuilds the bytes each format

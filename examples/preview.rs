@@ -1,4 +1,4 @@
-//! Writes a PNG preview of one or more detector images (side by side), e.g. for README figures.
+//! Writes a PNG preview of one or more detector images (side by side), e.g. for the manual's figures.
 //!
 //! ```text
 //! cargo run --release --example preview -- OUT.png MAX_SIDE_PX RUN_DIR/STEM [RUN_DIR/STEM …]

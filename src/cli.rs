@@ -83,8 +83,8 @@ pub struct AllowArgs {
     /// images they reference may be read from (repeatable). Nothing outside is read.
     #[arg(long = "allow-dir", value_name = "DIR")]
     pub allow_dir: Vec<PathBuf>,
-    /// Lift the caps on runs, pixels per image, bytes on disk and memory (see the README,
-    /// "Limits"); the 4 GiB limit of a classic TIFF file still applies.
+    /// Lift the caps on runs, pixels per image, bytes on disk and memory (see the manual,
+    /// docs/src/reference/limits.md); the 4 GiB limit of a classic TIFF file still applies.
     #[arg(long)]
     pub allow_large: bool,
 }
@@ -301,7 +301,7 @@ pub struct EvaluateArgs {
     /// not say it.
     #[arg(long, value_name = "N", default_value = "0", requires = "measured")]
     pub xmalab_2d_start_at: XmalabFirstPixel,
-    /// Read every run's results from one CSV long table instead (columns in the README).
+    /// Read every run's results from one CSV long table instead (columns in the manual, docs/src/guide/scoring.md).
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
     /// Confidence level of τ, in (0, 1).

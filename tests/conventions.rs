@@ -1,4 +1,4 @@
-//! `docs/CONVENTIONS.md` is the contract a reviewer reads instead of the code. These tests pin each
+//! `docs/src/reference/conventions.md` is the contract a reviewer reads instead of the code. These tests pin each
 //! formula and label it states against the code, so the document cannot drift from what rsasim does.
 
 use crate::common;
@@ -9,14 +9,14 @@ use rsasim::noise::NoiseKey;
 use sha2::{Digest, Sha256};
 
 fn conventions() -> String {
-    std::fs::read_to_string(common::root().join("docs/CONVENTIONS.md")).unwrap()
+    std::fs::read_to_string(common::root().join("docs/src/reference/conventions.md")).unwrap()
 }
 
 /// The document states `text` verbatim.
 fn states(text: &str) {
     assert!(
         conventions().contains(text),
-        "docs/CONVENTIONS.md no longer states `{text}`: update it with the code"
+        "docs/src/reference/conventions.md no longer states `{text}`: update it with the code"
     );
 }
 

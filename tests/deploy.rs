@@ -234,13 +234,14 @@ fn the_slurm_scripts_parse() {
     );
 }
 
-/// Every manifest, and the README's Kubernetes steps, name the image of this version, so a
-/// version bump cannot leave a manifest running an older rsasim (whose bytes differ).
+/// Every manifest, and the manual's Kubernetes steps (`docs/src/guide/cluster.md`), name the
+/// image of this version, so a version bump cannot leave a manifest running an older rsasim
+/// (whose bytes differ).
 #[test]
 fn the_manifests_name_the_image_of_this_version() {
     let image = format!("rsasim:{}", env!("CARGO_PKG_VERSION"));
     for m in MANIFESTS {
         assert_eq!(value_of(&text(m), "image"), image, "{m}");
     }
-    assert!(text("README.md").contains(&format!("`{image}`")));
+    assert!(text("docs/src/guide/cluster.md").contains(&format!("`{image}`")));
 }

@@ -1,5 +1,5 @@
 //! The house's rules that the compiler does not keep (the crate walls it keeps itself: see the
-//! README's "Code layout"): a thin `main`, no function with a long list of positional arguments,
+//! manual's Architecture, docs/src/development/architecture.md): a thin `main`, no function with a long list of positional arguments,
 //! and documentation that cites only files the repository has.
 
 use std::path::{Path, PathBuf};
@@ -173,21 +173,27 @@ fn main_only_dispatches() {
     assert!(lines <= MAX_MAIN_LINES, "src/main.rs has {lines} lines");
 }
 
-/// Paths in backticks in the repository's Markdown that name a source, test, doc or scenario file
-/// or folder of the repository (`crates/files/src/output/tiff.rs`, `docs/RECEIVING.md`) exist: a
-/// moved file leaves no stale citation behind.
+/// Every Markdown file under `dir`, at any depth.
+fn markdown_under(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            markdown_under(&p, out);
+        } else if p.extension().is_some_and(|x| x == "md") {
+            out.push(p);
+        }
+    }
+}
+
+/// Paths in backticks in the repository's Markdown (the README and every page of the manual,
+/// `docs/src/`) that name a source, test, doc or scenario file or folder of the
+/// repository (`crates/files/src/output/tiff.rs`, `docs/src/guide/receiving.md`) exist: a moved
+/// file leaves no stale citation behind. Links between pages are checked by
+/// `docs/check_links.py` on the built book.
 #[test]
 fn the_documentation_cites_files_that_exist() {
-    let mut docs: Vec<PathBuf> = ["README.md", "BENCHMARKS.md"]
-        .iter()
-        .map(|f| root().join(f))
-        .collect();
-    docs.extend(
-        std::fs::read_dir(root().join("docs"))
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| p.extension().is_some_and(|x| x == "md")),
-    );
+    let mut docs = vec![root().join("README.md")];
+    markdown_under(&root().join("docs/src"), &mut docs);
     let prefixes = [
         "src/",
         "crates/",

@@ -29,7 +29,7 @@
 //! commit built the binary, as long as the bytes rsasim writes do not change. The long run (20,000
 //! mutants per command) is `examples/fuzz_inputs.rs`.
 //!
-//! The budget is small for CI. For longer runs (fuzzing as a habit, see the README):
+//! The budget is small for CI. For longer runs (fuzzing as a habit, see docs/src/development/testing.md):
 //! `RSASIM_MUTATION_CASES=5000 RSASIM_MUTATION_SEED=$RANDOM cargo test --release --test integration mutation::`.
 //! A failure prints the seed of its mutant and keeps the mutant file so it can be replayed.
 

@@ -143,7 +143,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
         );
     }
 
-    // The README's recipe: evaluate each method's results by name, default report folders.
+    // The manual's recipe (docs/src/results/accuracy.md): evaluate each method's results by name, default report folders.
     let mut md = Vec::new();
     for name in [DLT, SELVIK] {
         let o = rsasim(

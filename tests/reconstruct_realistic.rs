@@ -466,7 +466,7 @@ fn on_blurred_scattered_images_the_implant_is_segmented_and_both_methods_find_it
     }
 }
 
-/// The detection table of the README: per exposure level of an existing radiograph-polarity
+/// The detection tables of docs/src/results/accuracy.md: per exposure level of an existing radiograph-polarity
 /// output (`RSASIM_MEASURE_OUT`, e.g. a run of `scenarios/biplanar_realistic.toml`), the box and
 /// model beads' detection rate and centre error against the truth, with the beads' radius in
 /// pixels from `RSASIM_MEASURE_RADIUS_PX` (default 2.32: 1 mm at magnification 1.385 on

@@ -359,7 +359,7 @@ fn loose_and_missing_markers_are_in_the_truth_and_in_study_json() {
     );
 }
 
-/// The shipped study, expanded in memory: the sign conventions the README states.
+/// The shipped study, expanded in memory: the sign conventions docs/src/guide/clinical-study.md states.
 #[test]
 fn on_the_shipped_study_subsidence_is_proximal_and_the_tilt_turns_proximal_forward() {
     let loaded = rsasim::scenario::load(&root().join("scenarios/tka_migration.toml")).unwrap();

@@ -26,7 +26,7 @@ pub fn execute(args: SpectrumArgs) -> Outcome {
     let loaded = &checked.loaded;
     let Some(setup) = &checked.setup else {
         eprintln!(
-            "error: {}: the scenario forms binary images; `rsasim spectrum` shows the beam of an attenuation-mode scenario\n  = help: set [imaging] mode = \"attenuation\" with a tube (README, \"Attenuation mode\")\n\nrsasim: 1 error(s); nothing was written",
+            "error: {}: the scenario forms binary images; `rsasim spectrum` shows the beam of an attenuation-mode scenario\n  = help: set [imaging] mode = \"attenuation\" with a tube (the manual, docs/src/physics/attenuation.md)\n\nrsasim: 1 error(s); nothing was written",
             args.scenario.display()
         );
         return Err(2);

@@ -100,7 +100,7 @@ impl SweepFile {
         let record: SweepRecord = toml::from_str(text).map_err(|e| {
             let message = e.message().trim_end().to_string();
             vec![locator.error_at_span(e.span(), message).with_help(
-                "a sweep file holds `scenario = \"BASE.toml\"`, optional `name` and `combine = \"grid\" | \"zip\"`, and [[parameters]] tables with `key`, `values` and optional `name` and `axis` (README, \"Parameter sweeps\")",
+                "a sweep file holds `scenario = \"BASE.toml\"`, optional `name` and `combine = \"grid\" | \"zip\"`, and [[parameters]] tables with `key`, `values` and optional `name` and `axis` (the manual, docs/src/guide/sweeps.md)",
             )]
         })?;
         let errors = check(&record, &locator);

@@ -348,7 +348,7 @@ fn at_sweep_value(
     let mut out = file.locator.at(d.severity, sweep_path, message);
     out.help = d.help.or_else(|| {
         (d.severity == Severity::Error)
-            .then(|| "change or remove this value; the scenario's rules are in the README".into())
+            .then(|| "change or remove this value; the scenario's rules are in the manual, docs/src/reference/scenario.md".into())
     });
     out
 }

@@ -244,7 +244,7 @@ impl Cost {
         let root = KeyPath::root();
         let override_help = |what: &str| {
             format!(
-                "{what}; if this is really meant, pass {OVERRIDE_FLAG} (see the README, \"Limits\")"
+                "{what}; if this is really meant, pass {OVERRIDE_FLAG} (see the manual, docs/src/reference/limits.md)"
             )
         };
         for (i, d) in s.detectors.iter().enumerate() {

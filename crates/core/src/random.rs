@@ -1,5 +1,5 @@
 //! The project's own derivation of random streams, so no dependency upgrade can move an output
-//! byte (docs/CONVENTIONS.md, "Determinism and seeds"). Every random number rsasim draws comes
+//! byte (docs/src/reference/conventions.md, "Determinism and seeds"). Every random number rsasim draws comes
 //! from here: the random draws of a scenario ([`stream`]) and the noise of every image row
 //! (`noise::stream` names its keys and asks [`keyed_stream`] for the rows).
 //!

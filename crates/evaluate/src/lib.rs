@@ -1,5 +1,5 @@
 //! The evaluation stage: score what a software under test reconstructed against the
-//! simulator's truth, by ISO 5725 trueness and precision (docs/CONVENTIONS.md, "Accuracy"), and write the
+//! simulator's truth, by ISO 5725 trueness and precision (docs/src/reference/conventions.md, "Accuracy"), and write the
 //! paper's tables (Tables 1–4) plus the analyses RSA guidelines ask for.
 //!
 //! It needs no images: only each run's `truth.json` and the software's results (a

@@ -1,4 +1,4 @@
-//! Residuals exactly as docs/CONVENTIONS.md ("Accuracy") defines them.
+//! Residuals exactly as docs/src/reference/conventions.md ("Accuracy") defines them.
 //!
 //! - Position: Δ = x_measured − x_true.
 //! - Orientation: M = R_measured · R_trueᵀ = Mx(α)·My(β)·Mz(γ), angles in degrees.

@@ -201,7 +201,7 @@ pub enum Centre {
     Centroid,
     /// A least-squares fit of a circular Gaussian (amplitude, centre, width) to the
     /// background-subtracted window, started at the centroid (the default: the more accurate
-    /// of the two on the project's images, sharp or blurred; see the README).
+    /// of the two on the project's images, sharp or blurred; see docs/src/guide/reference-program.md).
     #[default]
     GaussianFit,
 }

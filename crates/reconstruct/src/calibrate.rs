@@ -6,7 +6,7 @@
 //! (source position, detector pose); Levenberg–Marquardt then refines the 9 physical parameters on
 //! the pixel reprojection error, and one outlier pass drops grossly wrong correspondences.
 //!
-//! Conventions (docs/CONVENTIONS.md, "Units" and "Frames"): world = calibration box frame, mm. Continuous pixel
+//! Conventions (docs/src/reference/conventions.md, "Units" and "Frames"): world = calibration box frame, mm. Continuous pixel
 //! (u, v) lies at detector-frame x = (u − W/2)·pitch_x, y = (v − H/2)·pitch_y; the detector frame's
 //! axes are r (increasing column), c (increasing row) and s = r × c, pointing towards the source.
 

@@ -2,7 +2,7 @@
 //! resolved once ([`Setup`]); each exposure of a run becomes a list of solids with materials and
 //! nesting ([`scene::parts`]); each image is the exact path length of every solid on every pixel
 //! (`crate::trace::path_lengths`), summed per material, attenuated over the spectrum and turned
-//! into detector values with quantum noise (`crate::response`). See docs/CONVENTIONS.md, "Image formation".
+//! into detector values with quantum noise (`crate::response`). See docs/src/reference/conventions.md, "Image formation".
 
 pub mod beamline;
 pub mod check;

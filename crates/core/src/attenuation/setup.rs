@@ -184,7 +184,7 @@ impl Setup {
                     err(
                         key.key("detector").key(field),
                         format!("detector `{}`: {message}", det.id),
-                        "see the README, \"Unsharpness and sampling\", for valid values",
+                        "see the manual, docs/src/physics/unsharpness.md, for valid values",
                     )
                 })?;
             unsharp.push((det.id.clone(), built));
@@ -326,7 +326,7 @@ pub fn beam_spectrum(loaded: &LoadedScenario) -> Result<BeamSpectrum, Vec<Diagno
             err(
                 key.key("tube"),
                 e,
-                "kVp 40–150 (whole numbers), anode angles as listed in the README",
+                "kVp 40–150 (whole numbers), anode angles 6–22° (docs/src/physics/attenuation.md)",
             )
         })?;
         let mut filtered = unfiltered.clone();

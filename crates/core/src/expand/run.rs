@@ -25,7 +25,7 @@ pub struct Run {
     pub exposure_factor: Option<f64>,
     /// Index of the run within its noise level, 0-based.
     pub run_index: u32,
-    /// The label whose SHA-256 keys this run's geometry stream (see the README, "Seeds").
+    /// The label whose SHA-256 keys this run's geometry stream (see docs/src/reference/conventions.md, "Determinism and seeds").
     pub geometry_stream: String,
     /// Pose of the calibration box (the world frame of this file) in the scanner frame.
     pub box_pose_in_scanner: Pose,

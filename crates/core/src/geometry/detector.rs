@@ -1,6 +1,6 @@
 //! The detector's pixel frame and the central projection of a point source onto it.
 //!
-//! Detector frame (docs/CONVENTIONS.md, "Frames"): origin at the centre of the active area; local x = r along a row
+//! Detector frame (docs/src/reference/conventions.md, "Frames"): origin at the centre of the active area; local x = r along a row
 //! (increasing column index), local y = c along a column (increasing row index), local z = s, the
 //! normal pointing from the detector towards its source. Continuous pixel coordinates (u, v) put
 //! the centre of pixel (column i, row j) at (i + 0.5, j + 0.5).

@@ -1,7 +1,7 @@
 //! Geometry shared by every stage: rigid poses, Euler angles, the detector's pixel frame, the
 //! distance from a point to a triangle, and the triangulation and rigid-body fits of markers.
 //!
-//! Conventions (docs/CONVENTIONS.md, "Units" and "Frames"): lengths in millimetres, angles in degrees at every
+//! Conventions (docs/src/reference/conventions.md, "Units" and "Frames"): lengths in millimetres, angles in degrees at every
 //! boundary a person sees, radians only inside. A [`Pose`] maps local to world coordinates as
 //! `world = rotation · local + position`; the columns of `rotation` are the local axes in world
 //! coordinates. All trigonometry goes through the pure-Rust `libm` crate, never the platform's,

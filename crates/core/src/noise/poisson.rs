@@ -1,4 +1,4 @@
-//! The project's own Poisson sampler (docs/CONVENTIONS.md, "Determinism and seeds").
+//! The project's own Poisson sampler (docs/src/reference/conventions.md, "Determinism and seeds").
 //!
 //! Only `u64` draws of the generator are used, turned into doubles by [`super::stream::uniform`],
 //! and every value that decides a sample comes from the pure-Rust `libm` crate or from exact

@@ -1,6 +1,6 @@
 //! Noise stream derivation: which random numbers feed which image row.
 //!
-//! This is the project's own, documented derivation (docs/CONVENTIONS.md, "Determinism and seeds"). A reviewer can
+//! This is the project's own, documented derivation (docs/src/reference/conventions.md, "Determinism and seeds"). A reviewer can
 //! reproduce every random number of every image with a SHA-256 and a ChaCha8 implementation in
 //! any language:
 //!

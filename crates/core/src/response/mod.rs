@@ -1,5 +1,5 @@
 //! Detector response in attenuation mode: from per-pixel path lengths per material to stored
-//! detector values with quantum noise (docs/CONVENTIONS.md, "Image formation").
+//! detector values with quantum noise (docs/src/reference/conventions.md, "Image formation").
 //!
 //! The module takes plain numbers (energies, photon counts, attenuation coefficients, path
 //! lengths, fluence), so it depends neither on the material tables nor on the spectrum model nor

@@ -275,9 +275,9 @@ mod tests {
     fn conventions_state_the_constants() {
         let doc = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../../docs/CONVENTIONS.md"
+            "/../../docs/src/reference/conventions.md"
         ))
-        .expect("docs/CONVENTIONS.md");
+        .expect("docs/src/reference/conventions.md");
         for text in [
             "relative error ≤ 10⁻¹⁰",
             "more than 2¹⁶ intervals or more than one per 16 pixels",
@@ -285,7 +285,7 @@ mod tests {
         ] {
             assert!(
                 doc.contains(text),
-                "CONVENTIONS.md no longer states `{text}`"
+                "docs/src/reference/conventions.md no longer states `{text}`"
             );
         }
         assert_eq!(

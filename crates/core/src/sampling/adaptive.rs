@@ -24,7 +24,7 @@
 //!
 //! Every other pixel keeps its sharp value. The bound is tested against full sampling on the
 //! realistic knee (`tests/sampling.rs`): the largest difference over every pixel is stated there
-//! and in the README.
+//! and in docs/src/physics/unsharpness.md.
 
 /// The error a pixel left to one ray may have, estimated, as a fraction of its quantum-noise
 /// standard deviation.

@@ -1,6 +1,6 @@
 //! Where the rays of one pixel go (beyond the paper): area sampling over the pixel and a finite
 //! focal spot. Both modes average what these rays see, so a pixel an edge crosses gets a partial
-//! value and a shadow gets the penumbra of the spot (docs/CONVENTIONS.md, "Image formation (sampling and unsharpness)").
+//! value and a shadow gets the penumbra of the spot (docs/src/reference/conventions.md, "Image formation (sampling and unsharpness)").
 //!
 //! * **Pixel samples**: s×s rays per pixel, to the points `(i + (a + ½)/s, j + (b + ½)/s)`
 //!   (a, b = 0 … s−1) in continuous pixel coordinates, equal weights. They are traced as a

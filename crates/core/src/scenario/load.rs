@@ -111,7 +111,7 @@ fn parse_help(message: &str) -> Option<String> {
     if message.contains("unknown field") {
         Some("remove or rename the key; the valid keys are listed above and in schemas/scenario.schema.json".into())
     } else if message.contains("missing field") {
-        Some("add the key; see the README's scenario walk-through for what it means".into())
+        Some("add the key; docs/src/reference/scenario.md says what it means".into())
     } else if message.contains("invalid type") {
         Some("check the value's type: numbers without quotes, ids and paths in quotes, vectors as [x, y, z]".into())
     } else if message.contains("unknown variant") {

@@ -2,7 +2,7 @@
 //!
 //! Every field's doc comment becomes its description in `schemas/scenario.schema.json`, which
 //! editors with Taplo / Even Better TOML use to complete and check keys. Every default is stated
-//! in the doc comment and in the README. Coordinates are in the scanner (lab) frame, mm; angles
+//! in the doc comment and in docs/src/reference/scenario.md. Coordinates are in the scanner (lab) frame, mm; angles
 //! are X-Y-Z Euler angles in degrees (`R = Rx(α)·Ry(β)·Rz(γ)`, the paper's decomposition).
 
 use std::collections::BTreeMap;

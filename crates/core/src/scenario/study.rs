@@ -4,8 +4,8 @@
 //! a list of exams with the implant's prescribed migration relative to the bone, and a number of
 //! simulated patients. Every exam of every patient is one run: the whole limb is repositioned by
 //! the reference phantom's own `randomize` ranges (tubes and detectors by theirs), and every
-//! implant segment rides on the reference segment, displaced by the exam's migration. The README
-//! ("Clinical studies") states every convention; `crates/core/src/expand/study.rs` turns this into runs.
+//! implant segment rides on the reference segment, displaced by the exam's migration. docs/src/guide/clinical-study.md
+//! states every convention; `crates/core/src/expand/study.rs` turns this into runs.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -122,7 +122,7 @@ pub struct ExamSpec {
     pub double_of: Option<String>,
     /// The implants' prescribed migration at this exam: the motion of the implant's centre
     /// along the anatomical x, y, z axes, mm (subsidence of a femoral component is +y, of a
-    /// tibial component −y: see the README). Default `[0, 0, 0]`.
+    /// tibial component −y: see docs/src/guide/clinical-study.md). Default `[0, 0, 0]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation_mm: Option<[f64; 3]>,
     /// The implants' prescribed rotation at this exam about their centre, X-Y-Z Euler angles

@@ -16,7 +16,7 @@ const CHECKS: &str = include_str!("../../../../data/spectra/checks.tsv");
 /// continuum steps down at tungsten's K edge (69.525 keV: the anode absorbs its own photons above
 /// it) and the 0.5 keV samples interpolate across the step (1.06 %).
 const INTERPOLATION_MAX_BIN_ERROR: f64 = 0.012;
-/// Worst relative error of the photon total between tabulated angles (README: 0.50 %).
+/// Worst relative error of the photon total between tabulated angles (docs/src/physics/attenuation.md: 0.50 %).
 const INTERPOLATION_MAX_TOTAL_ERROR: f64 = 0.0051;
 /// Bins below this fraction of the peak are left out of the per-bin interpolation error.
 const BIN_FLOOR: f64 = 1e-3;

@@ -1,5 +1,5 @@
 //! Exact path lengths: per pixel, the length (mm) of the segment from the source to the pixel
-//! centre that lies inside one object (attenuation mode, docs/CONVENTIONS.md, "Image formation").
+//! centre that lies inside one object (attenuation mode, docs/src/reference/conventions.md, "Image formation").
 //!
 //! **Analytic solids** (spheres, cuboids, elliptic cylinders): the line's interval inside the
 //! solid (`shapes.rs`) clipped to the segment, for every pixel of the object's projected bounds.

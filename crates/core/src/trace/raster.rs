@@ -7,7 +7,7 @@
 //! triangles (a ray to a pixel centre crosses the mesh exactly when the pixel centre lies in the
 //! projection of a triangle it crosses). Every vertex is moved once into the detector frame and
 //! projected centrally to continuous pixel coordinates (u, v), with the centre of pixel (i, j) at
-//! (i + 0.5, j + 0.5) (docs/CONVENTIONS.md, "Pixels"; [`DetectorFrame::project`]). Each triangle is then filled row by
+//! (i + 0.5, j + 0.5) (docs/src/reference/conventions.md, "Pixels"; [`DetectorFrame::project`]). Each triangle is then filled row by
 //! row: for each row of its bounding box, each of its three edges bounds the row's span of pixel
 //! centres on one side; the bound is found from the edge's crossing with the row and settled with
 //! the edge function itself, so no pixel outside the span is tested (a triangle at most four

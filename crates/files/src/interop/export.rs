@@ -949,8 +949,8 @@ fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> S
          coordinates in these images are not rsasim's.\n\
          - Units: mm; world frame: the calibration box frame of truth.json.\n\
          {volumes}\
-         - One folder per run, since every run has its own geometry. See rsasim's README, \
-         \"XMALab and Autoscoper\", for the steps in {program} and how to score its results with \
+         - One folder per run, since every run has its own geometry. See rsasim's manual, \
+         docs/src/guide/xmalab-autoscoper.md, for the steps in {program} and how to score its results with \
          `rsasim evaluate`.\n",
         program = match options.target {
             Target::Xmalab => "XMALab",

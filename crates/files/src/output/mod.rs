@@ -1,5 +1,5 @@
 //! The output stage: image files, `truth.json`, `manifest.json`, the phantom files a real RSA
-//! user has, and the schemas of the JSON files (docs/CONVENTIONS.md, "Files").
+//! user has, and the schemas of the JSON files (docs/src/reference/conventions.md, "Files").
 
 pub mod atomic;
 pub mod commit;

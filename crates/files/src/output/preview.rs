@@ -1,4 +1,4 @@
-//! 8-bit grayscale PNG previews of detector images, for people (README figures, a quick look):
+//! 8-bit grayscale PNG previews of detector images, for people (the manual's figures, a quick look):
 //! never evidence. The TIFF and EXR files are the images; a preview is windowed and scaled.
 //!
 //! - **Window.** From the 0.5th to the 99.5th percentile of the image's pixel values (nearest
@@ -39,7 +39,7 @@ pub fn preview_png(pixels: &[u16], width: u32, height: u32, max_side_px: u32) ->
     encode(&gray.values, gray.width, gray.height)
 }
 
-/// Several previews side by side with a small gap (for README figures), each already windowed.
+/// Several previews side by side with a small gap (for the manual's figures), each already windowed.
 /// Each image `(pixels, width, height)` is windowed on its own percentiles and scaled as by
 /// [`preview_png`]; they stand left to right in the given order, centred vertically, [`GAP_PX`]
 /// apart on white. No images give a 1 × 1 mid-grey PNG.

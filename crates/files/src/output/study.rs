@@ -4,7 +4,7 @@
 //! it). Each exam of each patient is one run with its own `truth.json`; this file says which run is
 //! which exam and what the implant's true motion relative to the bone was.
 //!
-//! Conventions (the README's "Clinical studies" section states them for users):
+//! Conventions (docs/src/guide/clinical-study.md states them for users):
 //! - **Anatomical frame.** Migration is expressed in the anatomical frame of the reference segment
 //!   (the bone): x medial–lateral, y proximal–distal (+y proximal), z anterior–posterior
 //!   (+z anterior), given as a pose in the reference segment's local frame.

@@ -14,7 +14,7 @@
 //! `d[0] = p[0]`), is one zlib stream from the pinned `fdeflate` crate (pure scalar Rust; the
 //! image-rs project's fast deflate for PNG), strips compressed in parallel and stored in order.
 //! Measured on the biplanar protocol's images (1440², all five noise levels, one thread,
-//! BENCHMARKS.md "Encoders"): fdeflate 10 ms and 2.82 MB per image against 35 ms and 2.47 MB
+//! when version 0.5.0 chose it, see CHANGELOG.md): fdeflate 10 ms and 2.82 MB per image against 35 ms and 2.47 MB
 //! for the `tiff` crate's Deflate (miniz_oxide, fast level), so a TIFF costs a third of its
 //! former time for files 14 % larger. Any zlib reader decodes it.
 

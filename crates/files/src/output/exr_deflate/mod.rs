@@ -11,7 +11,7 @@
 //! still 47 % of the CPU time of the binary protocol. fdeflate (0.3.7) is fast but uses fixed
 //! code tables made for PNG, which make these blocks larger than raw. miniz_oxide (0.8, 0.9)
 //! and zlib-rs (0.6) in their Huffman-only modes are slower than libdeflate. The measurements
-//! are in BENCHMARKS.md ("An EXR encoder made for the data") and `examples/encoder_levels.rs`.
+//! are in docs/src/results/speed.md ("The EXR encoder") and `examples/encoder_levels.rs`.
 //!
 //! ## The stream
 //!

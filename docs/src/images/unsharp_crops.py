@@ -1,4 +1,4 @@
-"""The README's before/after crop (docs/images/unsharp-before-after.png).
+"""The manual's before/after crop (docs/src/images/unsharp-before-after.png).
 
 Run 0 at the ×1 exposure of biplanar_realistic and of biplanar_realistic_blurred, e.g.:
 
@@ -7,7 +7,7 @@ Run 0 at the ×1 exposure of biplanar_realistic and of biplanar_realistic_blurre
         scenarios/$f.toml > scenarios/_tmp_$f.toml
       cargo run --release -- scenarios/_tmp_$f.toml --out /tmp/crop_$f
     done
-    python3 docs/images/unsharp_crops.py /tmp/crop_biplanar_realistic /tmp/crop_biplanar_realistic_blurred
+    python3 docs/src/images/unsharp_crops.py /tmp/crop_biplanar_realistic /tmp/crop_biplanar_realistic_blurred
 
 A 56 × 56 px window of image model-det1 (rows 818-873, columns 734-789: the femoral component's
 lower edge and the markers K2 and K1), each side windowed to its own 1st-99.9th percentile,
@@ -35,7 +35,7 @@ def main():
     out = Image.new("L", (sharp.width * 2 + 12, sharp.height), 255)
     out.paste(sharp, (0, 0))
     out.paste(blurred, (sharp.width + 12, 0))
-    out.save("docs/images/unsharp-before-after.png", optimize=True)
+    out.save("docs/src/images/unsharp-before-after.png", optimize=True)
 
 
 if __name__ == "__main__":
