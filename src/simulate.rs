@@ -714,9 +714,14 @@ fn write_run(
         } else {
             &[]
         };
+        // Binary mode: the objects that stand still, and the others at each pose of the pulse.
+        let (still, movers): (Vec<usize>, Vec<usize>) = in_beam
+            .iter()
+            .partition(|&&pi| pulse.iter().all(|r| r.phantoms[pi] == run.phantoms[pi]));
+        let still_objects = objects_of(run, &still, models, bvhs);
         let pulse_objects: Vec<Vec<Object>> = pulse
             .iter()
-            .map(|r| objects_of(r, &in_beam, models, bvhs))
+            .map(|r| objects_of(r, &movers, models, bvhs))
             .collect();
         let parts = match &plan.setup {
             Some(setup) => Some(
@@ -801,6 +806,7 @@ fn write_run(
                     crate::binary::noisy_image_in_motion(
                         &frame,
                         source,
+                        &still_objects,
                         &pulse_objects,
                         sampling,
                         run.noise_level,

@@ -15,6 +15,7 @@ use glam::DVec3;
 
 use crate::geometry::DetectorFrame;
 use crate::noise::{self, NoiseKey};
+use crate::sampling::strip::window;
 use crate::sampling::{Sampling, coverage};
 use crate::trace::{self, Object};
 
@@ -41,15 +42,20 @@ pub fn noisy_image(
     blended(&covered, &field, i_max)
 }
 
-/// One noisy binary-mode image of a frame whose objects move during its pulse: `pulse` holds the
-/// objects at each of the pulse's poses (in time order, equal weights), and a pixel's covered
-/// fraction is the mean of its covered fractions at those poses ([`coverage::coverage`], each as
-/// `sampling` says), summed in pose order and divided by their number, then blended with the
-/// noise ([`blend`]) as in [`noisy_image`].
+/// One noisy binary-mode image of a frame whose objects move during its pulse: `still` are the
+/// objects that stand still, `moving[k]` the others at the pulse's pose k (in time order, equal
+/// weights). A pixel's covered fraction is the mean of its covered fractions at those poses
+/// ([`coverage::coverage`], each as `sampling` says, summed in pose order and divided by their
+/// number), blended with the noise ([`blend`]) as in [`noisy_image`].
+///
+/// Only the pixels that some moving object can reach at some pose (the union of their shadows'
+/// bounding rectangles from every sub-source, grown by a pixel) are traced at every pose; the
+/// others see the still objects alone, the same at every pose, and are traced once.
 pub fn noisy_image_in_motion(
     frame: &DetectorFrame,
     source_mm: DVec3,
-    pulse: &[Vec<Object>],
+    still: &[Object],
+    moving: &[Vec<Object>],
     sampling: &Sampling,
     noise_level: f64,
     i_max: u16,
@@ -58,20 +64,61 @@ pub fn noisy_image_in_motion(
     let [w, h] = frame.pixels.map(|n| n as usize);
     let (covered, field) = rayon::join(
         || {
-            let mut sum = vec![0.0; w * h];
-            for objects in pulse {
-                let c = coverage::coverage(frame, source_mm, objects, sampling);
-                for (s, c) in sum.iter_mut().zip(&c) {
-                    *s += c;
+            let mut covered = coverage::coverage(frame, source_mm, still, sampling);
+            let Some((i0, i1, j0, j1)) = reach(frame, source_mm, moving, sampling) else {
+                return covered;
+            };
+            let (ww, wh) = (i1 - i0, j1 - j0);
+            let part = window(frame, i0, j0, ww, wh, 1);
+            let mut sum = vec![0.0; (ww * wh) as usize];
+            for pose in moving {
+                let objects: Vec<Object> = still.iter().chain(pose).cloned().collect();
+                let c = coverage::coverage(&part, source_mm, &objects, sampling);
+                sum.iter_mut().zip(&c).for_each(|(s, c)| *s += c);
+            }
+            let k = moving.len().max(1) as f64;
+            for (row, sums) in sum.chunks_exact(ww as usize).enumerate() {
+                let start = (j0 as usize + row) * w + i0 as usize;
+                for (c, s) in covered[start..start + ww as usize].iter_mut().zip(sums) {
+                    *c = s / k;
                 }
             }
-            let k = pulse.len().max(1) as f64;
-            sum.iter_mut().for_each(|s| *s /= k);
-            sum
+            covered
         },
         || noise::noise_field(w, h, noise_level, i_max, key),
     );
     blended(&covered, &field, i_max)
+}
+
+/// The pixel rectangle the `moving` objects can reach at any pose from any sub-source, grown by
+/// one pixel and clipped to the detector; `None` when they miss it.
+fn reach(
+    frame: &DetectorFrame,
+    source_mm: DVec3,
+    moving: &[Vec<Object>],
+    sampling: &Sampling,
+) -> Option<(u32, u32, u32, u32)> {
+    let [w, h] = frame.pixels;
+    let mut out: Option<(u32, u32, u32, u32)> = None;
+    for (src, _) in sampling.sources(frame, source_mm) {
+        for object in moving.iter().flatten() {
+            if let Some((i0, i1, j0, j1)) = trace::shadow_bounds(frame, src, object) {
+                out = Some(match out {
+                    None => (i0, i1, j0, j1),
+                    Some((a0, a1, b0, b1)) => (a0.min(i0), a1.max(i1), b0.min(j0), b1.max(j1)),
+                });
+            }
+        }
+    }
+    out.map(|(i0, i1, j0, j1)| {
+        (
+            i0.saturating_sub(1),
+            (i1 + 1).min(w),
+            j0.saturating_sub(1),
+            (j1 + 1).min(h),
+        )
+    })
+    .filter(|&(i0, i1, j0, j1)| i1 > i0 && j1 > j0)
 }
 
 /// One noisy binary-mode image from one ray per pixel centre: the clean projection

@@ -344,10 +344,15 @@ pub fn reconstruct_run(
 }
 
 /// The phantom `id` is fixed to (`fixed_to` in the scenario), with its pose in that phantom's
-/// frame; `None` for a phantom that moves on its own.
+/// frame; `None` for a phantom that moves on its own. In a sequence (`[sequence]`) a phantom
+/// fixed to another may also move relative to it (its `motion`, which a blind folder does not
+/// show), so there a phantom with beads of its own is fitted on its own.
 pub(crate) fn fixed_to(setup: &Setup, id: &str) -> Option<(String, Pose)> {
     let p = setup.scenario.phantoms.iter().find(|p| p.id == id)?;
     let parent = p.fixed_to.clone()?;
+    if setup.scenario.sequence.is_some() && setup.beads.get(id).is_some_and(|b| !b.is_empty()) {
+        return None;
+    }
     Some((
         parent,
         Pose::from_position_euler_deg(p.position_mm, p.rotation_deg),

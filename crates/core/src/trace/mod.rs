@@ -40,6 +40,7 @@ use chord_row::{Posed, RowSolid};
 use crate::geometry::{DetectorFrame, Pose};
 
 /// An object in the beam, placed in the world (box) frame.
+#[derive(Clone)]
 pub enum Object<'a> {
     /// An exact sphere (a bead).
     Sphere {
@@ -358,6 +359,18 @@ impl Chords {
             Solid::Posed(p, solid) => chord_row::lengths(p, *solid, targets, out),
         }
     }
+}
+
+/// The half-open pixel rectangle `[i0, i1) × [j0, j1)` whose pixel centres can see `object` from
+/// `source` (the projection of its bounding box, clipped to the detector); `None` when it is
+/// empty.
+pub fn shadow_bounds(
+    frame: &DetectorFrame,
+    source: DVec3,
+    object: &Object,
+) -> Option<(u32, u32, u32, u32)> {
+    let (lo, hi) = object.local_bounds();
+    pixel_bounds(frame, source, object.pose(), lo, hi)
 }
 
 /// The half-open pixel rectangle `[i0, i1) × [j0, j1)` that contains the projection of the local
