@@ -329,3 +329,90 @@ fn a_blind_images_folder_keeps_the_motion_with_the_truth() {
     assert!(!images.join("runs/n0-r00-f0001/truth.json").exists());
     assert!(truth.join("runs/n0-r00-f0001/truth.json").is_file());
 }
+
+/// The Cardan angles x-z-y (degrees) of `r = Rx(α)·Rz(β)·Ry(γ)`, from its entries: `r01 = −sin β`,
+/// `r00 = cos β cos γ`, `r02 = cos β sin γ`, `r11 = cos α cos β`, `r21 = sin α cos β` (by hand).
+fn cardan_xzy_deg(r: &DMat3) -> [f64; 3] {
+    let m = |i: usize, j: usize| r.col(j)[i];
+    [
+        m(2, 1).atan2(m(1, 1)).to_degrees(),
+        (-m(0, 1)).asin().to_degrees(),
+        m(0, 2).atan2(m(0, 0)).to_degrees(),
+    ]
+}
+
+#[test]
+fn the_knee_s_kinematics_in_the_truth_equal_an_independent_computation_and_the_motion() {
+    // dynamic_knee.toml with 12 frames at 12 per second (t = 0 … 0.917 s), one sequence.
+    let text = std::fs::read_to_string(root().join("scenarios/dynamic_knee.toml"))
+        .unwrap()
+        .replace("frames = 100", "frames = 12")
+        .replace("frame_rate_hz = 100.0", "frame_rate_hz = 12.0")
+        .replace("runs_per_level = 5", "runs_per_level = 1")
+        .replace(
+            "\"models/",
+            &format!("\"{}/", root().join("scenarios/models").display()),
+        );
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = tmp.path().join("knee.toml");
+    std::fs::write(&scenario, text).unwrap();
+    let out = tmp.path().join("out");
+    let models = root().join("scenarios/models");
+    rsasim_ok(&[
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--allow-dir",
+        models.to_str().unwrap(),
+    ]);
+    let t = truths(&out);
+    assert_eq!(t.len(), 12);
+    let (mut worst_independent, mut worst_circle) = (0.0f64, 0.0f64);
+    for (_, truth) in &t {
+        let run = &truth.run;
+        let frame = run.frame.as_ref().unwrap();
+        let knee = &frame.joints[0];
+        assert_eq!(knee.id, "knee");
+        let pose = |id: &str| run.phantoms.iter().find(|p| p.id == id).unwrap().pose();
+        // The anatomical frames as the scenario states them: the femoral one at the flexion axis.
+        let femur = pose("femur");
+        let p_origin = femur.to_world(DVec3::new(0.0, 11.0, -0.9113885478194081));
+        let (pr, tibia) = (femur.rotation, pose("tibia"));
+        // Independent: the Cardan angles of the relative rotation, the floating axis as
+        // P·Rx(α)·z, translations along x_p, that axis and y_d.
+        let angles = cardan_xzy_deg(&(pr.transpose() * tibia.rotation));
+        let a = angles[0].to_radians();
+        let e2 = pr * DVec3::new(0.0, -a.sin(), a.cos());
+        let h = tibia.position_mm - p_origin;
+        let q = [h.dot(pr.x_axis), h.dot(e2), h.dot(tibia.rotation.y_axis)];
+        for (got, want) in knee
+            .angles_deg
+            .iter()
+            .chain(&knee.translation_mm)
+            .zip(angles.iter().chain(&q))
+        {
+            worst_independent = worst_independent.max((got - want).abs());
+        }
+        // The motion: 60° over 0.99 s about the flexion axis, at constant angular speed (keyframes
+        // every 2°, rotations exact; positions a cubic through points of the circle).
+        let flexion = (60.0 * frame.time_s / 0.99).min(60.0);
+        assert!(
+            (knee.angles_deg[0] - flexion).abs() < 1e-9,
+            "{knee:?} at {}",
+            frame.time_s
+        );
+        assert!(
+            knee.angles_deg[1].abs() < 1e-9 && knee.angles_deg[2].abs() < 1e-9,
+            "{knee:?}"
+        );
+        let circle = [0.0, 0.0, -50.2005045473403];
+        for (got, want) in knee.translation_mm.iter().zip(circle) {
+            worst_circle = worst_circle.max((got - want).abs());
+        }
+    }
+    eprintln!(
+        "knee kinematics: truth vs independent {worst_independent:.1e} (mm, deg); translations off the circle by at most {worst_circle:.1e} mm"
+    );
+    assert!(worst_independent < 1e-9, "{worst_independent}");
+    assert!(worst_circle < 1e-3, "{worst_circle}");
+}

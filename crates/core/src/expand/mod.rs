@@ -192,6 +192,10 @@ fn drawn_run(
         Some(b.position_mm)
     });
     run.frame = state;
+    let joints = sequence::joint_states(s, &run);
+    if let Some(f) = run.frame.as_mut() {
+        f.joints = joints;
+    }
     run
 }
 

@@ -55,6 +55,23 @@ pub struct FrameState {
     /// The frame's time from the first frame, s: `index / frame_rate_hz` (the middle of its
     /// pulse).
     pub time_s: f64,
+    /// The kinematics of each joint of `[sequence]` at `time_s`, in the joint coordinate system
+    /// of Grood and Suntay (`crate::geometry::joint`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub joints: Vec<JointState>,
+}
+
+/// One joint's kinematics in one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JointState {
+    /// The joint's id.
+    pub id: String,
+    /// Flexion α (about e1, the proximal frame's x), ab/adduction β (about the floating axis
+    /// e2) and axial rotation γ (about e3, the distal frame's y), degrees.
+    pub angles_deg: [f64; 3],
+    /// The distal frame's origin from the proximal one's along e1, e2, e3, mm.
+    pub translation_mm: [f64; 3],
 }
 
 impl Run {

@@ -20,8 +20,9 @@
 //! `fixed_to` a parent, the parent's pose at `t` composed with its place on the parent. So a
 //! tibia fixed to a moving femur with a motion of its own moves relative to the femur by `M(t)`.
 
-use super::{FrameState, Run, frame_at};
+use super::{FrameState, JointState, Run, frame_at};
 use crate::geometry::Pose;
+use crate::geometry::joint::grood_suntay;
 use crate::phantom::PhantomModel;
 use crate::scenario::Scenario;
 
@@ -66,7 +67,44 @@ pub fn frame_state(s: &Scenario, sequence_id: &str, frame: u32) -> Option<FrameS
         index: frame,
         count: q.frames,
         time_s: frame_time_s(q.frame_rate_hz, frame),
+        joints: Vec::new(),
     })
+}
+
+/// Each joint of the sequence in `run` (its phantoms' poses, box frame): the Grood–Suntay
+/// angles and translations between the anatomical frames ([`crate::geometry::joint`]).
+///
+/// # Panics
+/// When a joint names a phantom the run does not have (the scenario check refuses that first).
+pub fn joint_states(s: &Scenario, run: &Run) -> Vec<JointState> {
+    let Some(q) = &s.sequence else {
+        return Vec::new();
+    };
+    let frame_of = |id: &str, spec: &crate::scenario::FrameSpec| {
+        let phantom = run
+            .phantoms
+            .iter()
+            .find(|p| p.id == id)
+            .expect("validated joint phantom");
+        phantom.pose().compose(&Pose::from_position_euler_deg(
+            spec.position_mm,
+            spec.rotation_deg,
+        ))
+    };
+    q.joints
+        .iter()
+        .map(|j| {
+            let k = grood_suntay(
+                &frame_of(&j.proximal, &j.proximal_frame),
+                &frame_of(&j.distal, &j.distal_frame),
+            );
+            JointState {
+                id: j.id.clone(),
+                angles_deg: k.angles_deg,
+                translation_mm: k.translation_mm,
+            }
+        })
+        .collect()
 }
 
 /// The frame run `run` at each pose of its pulse (`Sequence::pulse_offsets_s`), in time order:

@@ -9,6 +9,7 @@
 
 mod detector;
 mod distance;
+pub mod joint;
 mod pose;
 mod rigid;
 pub mod trajectory;

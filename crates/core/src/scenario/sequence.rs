@@ -6,6 +6,7 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::study::FrameSpec;
 use crate::geometry::trajectory::{Key, Trajectory, TrajectoryError};
 
 /// A sequence of frames at a fixed rate: every run of the protocol becomes `frames` runs, one per
@@ -28,6 +29,33 @@ pub struct Sequence {
     /// (times `t + ((j + ½)/K − ½)·pulse`, j = 0 … K − 1). Default 5.
     #[serde(default = "Sequence::default_pulse_samples")]
     pub pulse_samples: u32,
+    /// Joints whose kinematics the truth of every frame gives, in the joint coordinate system
+    /// of Grood and Suntay ([`crate::geometry::joint`]). Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub joints: Vec<JointSpec>,
+}
+
+/// A joint between two phantoms, e.g. the knee between the femur (proximal) and the tibia
+/// (distal). Its coordinate system is built on an anatomical frame in each: x medio-lateral in
+/// the proximal one (the flexion axis), y along the long axis (proximal) in the distal one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    /// Id (letters, digits, `-`, `_`, `.`), e.g. `knee`.
+    pub id: String,
+    /// Id of the proximal segment's phantom (the femur of a knee).
+    pub proximal: String,
+    /// Id of the distal segment's phantom (the tibia of a knee).
+    pub distal: String,
+    /// The proximal anatomical frame in that phantom's local frame: x medio-lateral (the
+    /// flexion axis), y proximal, z anterior; its origin is where translations are measured
+    /// from. Default: the phantom's own frame.
+    #[serde(default)]
+    pub proximal_frame: FrameSpec,
+    /// The distal anatomical frame in that phantom's local frame: y along its long axis
+    /// (proximal), x medio-lateral, z anterior. Default: the phantom's own frame.
+    #[serde(default)]
+    pub distal_frame: FrameSpec,
 }
 
 impl Sequence {

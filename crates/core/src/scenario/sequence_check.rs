@@ -7,6 +7,40 @@ use crate::diagnostic::KeyPath;
 use crate::geometry::trajectory::TrajectoryError;
 
 impl Checker<'_> {
+    /// Every finding on the joints of sequence `q` of scenario `s`.
+    fn joints(&mut self, s: &Scenario, q: &Sequence, path: &KeyPath) {
+        let path = path.key("joints");
+        self.unique_ids(&path, q.joints.iter().map(|j| j.id.as_str()), "joint");
+        let ids: Vec<&str> = s.phantoms.iter().map(|p| p.id.as_str()).collect();
+        for (k, j) in q.joints.iter().enumerate() {
+            let at = path.index(k);
+            self.id(&at.key("id"), &j.id, "the joint id");
+            for (key, id) in [("proximal", &j.proximal), ("distal", &j.distal)] {
+                if !ids.contains(&id.as_str()) {
+                    self.err(
+                        at.key(key),
+                        format!("no phantom has the id `{}`", crate::diagnostic::cut(id)),
+                        format!("valid phantom ids: {}", super::validate::quoted(&ids)),
+                    );
+                }
+            }
+            if j.proximal == j.distal {
+                self.err(
+                    at.key("distal"),
+                    format!("the joint's two segments are both `{}`", j.distal),
+                    "name the proximal segment's phantom (the femur of a knee) and the distal one's (the tibia)",
+                );
+            }
+            for (key, f) in [
+                ("proximal_frame", &j.proximal_frame),
+                ("distal_frame", &j.distal_frame),
+            ] {
+                self.finite3(&at.key(key).key("position_mm"), f.position_mm);
+                self.finite3(&at.key(key).key("rotation_deg"), f.rotation_deg);
+            }
+        }
+    }
+
     /// Every finding on the sequence and the phantoms' motions of `s`.
     pub(super) fn sequence(&mut self, s: &Scenario) {
         let root = KeyPath::root();
@@ -48,6 +82,7 @@ impl Checker<'_> {
                     );
                 }
             }
+            self.joints(s, q, &path);
             if !(1..=MAX_PULSE_SAMPLES).contains(&q.pulse_samples) {
                 self.err(
                     path.key("pulse_samples"),
@@ -229,6 +264,29 @@ position_mm = [0, 0, 0]
             m.iter().any(
                 |x| x.contains("keyframes[1].position_mm") && x.contains("not a finite vector")
             ),
+            "{m:?}"
+        );
+    }
+
+    #[test]
+    fn joints_name_two_phantoms_that_exist() {
+        let m = messages(&format!(
+            "{BASE}{MOTION}{SEQUENCE}[[sequence.joints]]\nid = \"knee\"\nproximal = \"femur\"\ndistal = \"b\"\n[[sequence.joints]]\nid = \"knee\"\nproximal = \"b\"\ndistal = \"b\"\n"
+        ));
+        assert!(
+            m.iter().any(|x| x.contains("`sequence.joints[0].proximal`")
+                && x.contains("no phantom has the id `femur`")
+                && x.contains("valid phantom ids: `b`")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.contains("`sequence.joints[1].distal`") && x.contains("both `b`")),
+            "{m:?}"
+        );
+        assert!(
+            m.iter()
+                .any(|x| x.contains("two joints have the id `knee`")),
             "{m:?}"
         );
     }
