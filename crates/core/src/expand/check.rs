@@ -144,6 +144,12 @@ fn check_run(
             .extent_points()
             .map(|(p, radius)| (pose.to_world(p), radius))
             .collect();
+        // Leaving the field is worth a warning for every bead, and for the outline of a phantom
+        // an RSA program fits, not for a background solid cut by the image's edge in every real
+        // radiograph (a soft-tissue envelope, or a solid fixed to another phantom, such as a
+        // bone carried by its implant).
+        let beads = model.markers.len();
+        let outline_matters = outline_matters(s, pi);
         let mut in_some_field = false;
         let mut misplaced_here = false;
         for (di, dstate) in run.detectors.iter().enumerate() {
@@ -154,7 +160,7 @@ fn check_run(
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
             let mut outside = false;
             let mut misplaced = None;
-            for &(world, radius) in &points {
+            for (k, &(world, radius)) in points.iter().enumerate() {
                 let z = frame.pose.to_local(world).z;
                 if z - radius <= 0.0 {
                     misplaced = Some(format!(
@@ -175,7 +181,12 @@ fn check_run(
                     radius * magnification / frame.pixel_pitch_mm[0].min(frame.pixel_pitch_mm[1]);
                 lo = lo.min(DVec3::new(uv.x - r_px, uv.y - r_px, 0.0));
                 hi = hi.max(DVec3::new(uv.x + r_px, uv.y + r_px, 0.0));
-                if uv.x - r_px < 0.0 || uv.y - r_px < 0.0 || uv.x + r_px > w || uv.y + r_px > h {
+                if (k < beads || outline_matters)
+                    && (uv.x - r_px < 0.0
+                        || uv.y - r_px < 0.0
+                        || uv.x + r_px > w
+                        || uv.y + r_px > h)
+                {
                     outside = true;
                 }
             }
@@ -185,7 +196,7 @@ fn check_run(
                 misplaced_here = true;
                 continue;
             }
-            if outside {
+            if outside && !is_box(s, pi) {
                 f.partly_outside[slot].note(index, &run.id);
             }
             // The projected bounding box of the phantom meets the active area.
@@ -237,6 +248,21 @@ fn check_run(
         }
     }
     f
+}
+
+/// Whether phantom `pi`'s outline leaving a detector's field is worth a warning: not for a
+/// soft-tissue envelope (an elliptic cylinder) or a solid fixed to another phantom (a bone
+/// carried by its implant), which real radiographs cut at their edges; only their beads count.
+fn outline_matters(s: &crate::scenario::Scenario, pi: usize) -> bool {
+    let p = &s.phantoms[pi];
+    !matches!(p.shape(), PhantomShape::EllipticCylinder(_)) && p.fixed_to.is_none()
+}
+
+/// Whether phantom `pi` is a calibration box: one that spans several detectors (a uniplanar
+/// cage over two side-by-side panels) is partly outside each by design, so leaving a field is
+/// no warning for it; a bead of it that no image shows still is.
+fn is_box(s: &crate::scenario::Scenario, pi: usize) -> bool {
+    matches!(s.phantoms[pi].shape(), PhantomShape::CalibrationBox(_))
 }
 
 /// Whether a phantom's mesh hides the beads in its shadow: always in binary mode (its shadow is
@@ -298,7 +324,8 @@ fn report(
                 out.push(loaded.locator.warning(
                     key.clone(),
                     format!(
-                        "phantom `{id}` falls partly outside the field of detector `{}` in {} of {total} runs (first: {first})",
+                        "{} `{id}` falls partly outside the field of detector `{}` in {} of {total} runs (first: {first})",
+                        if outline_matters(s, pi) { "phantom" } else { "a bead of phantom" },
                         cut(&det.id),
                         f.partly_outside[slot].count,
                     ),
@@ -326,10 +353,20 @@ fn report(
             );
             continue;
         }
+        // A calibration box's bead that an implant hides in some views is a cage exam's
+        // everyday lot: only one that falls off every detector in every image is worth a word.
+        let boxed = is_box(s, pi);
         let never: Vec<usize> = f.beads[pi]
             .iter()
             .enumerate()
-            .filter(|(_, t)| t[0] > 0 && t[1] + t[2] >= t[0])
+            .filter(|(_, t)| {
+                t[0] > 0
+                    && if boxed {
+                        t[1] >= t[0]
+                    } else {
+                        t[1] + t[2] >= t[0]
+                    }
+            })
             .map(|(k, _)| k)
             .collect();
         for &k in never.iter().take(MAX_BEAD_WARNINGS) {
