@@ -806,8 +806,10 @@ fn write_run(
                     crate::binary::noisy_image_in_motion(
                         &frame,
                         source,
-                        &still_objects,
-                        &pulse_objects,
+                        crate::binary::Pulse {
+                            still: &still_objects,
+                            moving: &pulse_objects,
+                        },
                         sampling,
                         run.noise_level,
                         det.i_max(),

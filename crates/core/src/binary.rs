@@ -42,6 +42,15 @@ pub fn noisy_image(
     blended(&covered, &field, i_max)
 }
 
+/// The objects of a frame whose objects move during its pulse ([`noisy_image_in_motion`]).
+#[derive(Clone, Copy)]
+pub struct Pulse<'p, 'a> {
+    /// The objects that stand still.
+    pub still: &'p [Object<'a>],
+    /// The others at each of the pulse's poses, in time order.
+    pub moving: &'p [Vec<Object<'a>>],
+}
+
 /// One noisy binary-mode image of a frame whose objects move during its pulse: `still` are the
 /// objects that stand still, `moving[k]` the others at the pulse's pose k (in time order, equal
 /// weights). A pixel's covered fraction is the mean of its covered fractions at those poses
@@ -54,13 +63,13 @@ pub fn noisy_image(
 pub fn noisy_image_in_motion(
     frame: &DetectorFrame,
     source_mm: DVec3,
-    still: &[Object],
-    moving: &[Vec<Object>],
+    pulse: Pulse,
     sampling: &Sampling,
     noise_level: f64,
     i_max: u16,
     key: &NoiseKey,
 ) -> Vec<u16> {
+    let Pulse { still, moving } = pulse;
     let [w, h] = frame.pixels.map(|n| n as usize);
     let (covered, field) = rayon::join(
         || {
