@@ -26,6 +26,7 @@ mod house;
 mod interop;
 mod knee_joint;
 mod limits;
+mod manual;
 mod mesh_formats;
 mod migration;
 mod mutation;
