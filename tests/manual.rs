@@ -55,14 +55,19 @@ fn the_command_line_reference_is_the_parser_s_own_help() {
         commands(&help(&[])).len() >= 13,
         "the command list was not found in `rsasim --help`"
     );
-    let path = root().join(CLI_PAGE);
+    same_as_committed(CLI_PAGE, &page);
+}
+
+/// Fails unless the committed page `rel` is `page`; with `RSASIM_BLESS` set, writes it first.
+fn same_as_committed(rel: &str, page: &str) {
+    let path = root().join(rel);
     if std::env::var_os("RSASIM_BLESS").is_some() {
-        std::fs::write(&path, &page).unwrap();
+        std::fs::write(&path, page).unwrap();
     }
     let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
     assert!(
         on_disk == page,
-        "{CLI_PAGE} is not what the program prints: regenerate it with `RSASIM_BLESS=1 cargo test --test integration manual::` and commit it"
+        "{rel} is not what the program gives: regenerate it with `RSASIM_BLESS=1 cargo test --test integration manual::` and commit it"
     );
 }
 
@@ -228,13 +233,5 @@ fn the_scenario_key_reference_is_the_schema_s_own() {
             "no section {table}"
         );
     }
-    let path = root().join(KEYS_PAGE);
-    if std::env::var_os("RSASIM_BLESS").is_some() {
-        std::fs::write(&path, &page).unwrap();
-    }
-    let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
-    assert!(
-        on_disk == page,
-        "{KEYS_PAGE} is not the schema's: regenerate it with `RSASIM_BLESS=1 cargo test --test integration manual::` and commit it"
-    );
+    same_as_committed(KEYS_PAGE, &page);
 }
