@@ -235,3 +235,93 @@ fn the_scenario_key_reference_is_the_schema_s_own() {
     }
     same_as_committed(KEYS_PAGE, &page);
 }
+
+/// The pages whose shell examples marked `<!-- runnable -->` are run.
+const RUNNABLE_PAGES: [&str; 3] = [
+    "README.md",
+    "docs/src/tutorial/index.md",
+    "docs/src/guide/dynamic-exams.md",
+];
+
+/// The command lines of the fenced blocks just after a `<!-- runnable -->` line, in page order:
+/// each without its trailing `# comment`.
+fn runnable_commands(page: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut lines = page.lines();
+    while let Some(line) = lines.next() {
+        if line.trim() != "<!-- runnable -->" {
+            continue;
+        }
+        assert!(
+            lines.next().is_some_and(|l| l.trim() == "```sh"),
+            "a runnable mark stands before something else than a ```sh block"
+        );
+        for l in lines.by_ref() {
+            if l.trim() == "```" {
+                break;
+            }
+            let command = l.split("  #").next().unwrap_or("").trim();
+            if !command.is_empty() {
+                out.push(command.to_string());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_manual_s_runnable_examples_run() {
+    // Each page runs in a folder of its own that holds copies of the checkout's scenarios, models
+    // and test scenarios, except that `scenarios/biplanar.toml` is a small stand-in of the same name (the
+    // paper's protocol takes a minute and 2.9 GB): scenarios/golden/small_biplanar.toml, named
+    // `biplanar`. Every command must succeed; `rsasim` and `cargo run --release --` both run the
+    // binary under test.
+    let small = std::fs::read_to_string(root().join("scenarios/golden/small_biplanar.toml"))
+        .unwrap()
+        .replace("name = \"small_biplanar\"", "name = \"biplanar\"");
+    assert!(small.contains("name = \"biplanar\"") && small.contains("\"models/"));
+    let mut ran = 0;
+    for rel in RUNNABLE_PAGES {
+        let commands = runnable_commands(&std::fs::read_to_string(root().join(rel)).unwrap());
+        assert!(!commands.is_empty(), "{rel} has no runnable example");
+        let tmp = tempfile::tempdir().unwrap();
+        // Copies, not links: a scenario may read meshes only from folders it is allowed.
+        let copy_dir = |from: &str, to: &std::path::Path, only_toml: bool| {
+            std::fs::create_dir_all(to).unwrap();
+            for e in std::fs::read_dir(root().join(from)).unwrap() {
+                let p = e.unwrap().path();
+                let toml = p.extension().is_some_and(|x| x == "toml");
+                if p.is_file() && (toml || !only_toml) {
+                    std::fs::copy(&p, to.join(p.file_name().unwrap())).unwrap();
+                }
+            }
+        };
+        let scenarios = tmp.path().join("scenarios");
+        copy_dir("scenarios", &scenarios, true);
+        copy_dir("scenarios/models", &scenarios.join("models"), false);
+        copy_dir("tests/scenarios", &tmp.path().join("tests/scenarios"), true);
+        std::fs::write(scenarios.join("biplanar.toml"), &small).unwrap();
+        for command in &commands {
+            let words: Vec<&str> = command.split_whitespace().collect();
+            let args: &[&str] = match words.as_slice() {
+                ["rsasim", rest @ ..] => rest,
+                ["cargo", "run", "--release", "--", rest @ ..] => rest,
+                _ => panic!(
+                    "{rel}: `{command}` is marked runnable but runs neither rsasim nor cargo run"
+                ),
+            };
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_rsasim"))
+                .args(args)
+                .current_dir(tmp.path())
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "{rel}: `{command}` failed:\n{}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 11, "{ran} commands");
+}
