@@ -903,15 +903,16 @@ fn write_run(
                         blur_px: pulse_ends.as_ref().map(|(start, end)| {
                             // The projected centre's path over the pulse: through its place at
                             // the start, at each of the pulse's poses, and at the end.
+                            // The frame's own poses are checked to lie between source and
+                            // detector, the pulse's in between are not: a place that does not
+                            // project is left out of the path.
                             let at = |r: &Run| {
-                                frame
-                                    .project(source, r.phantoms[pi].markers[bi].position_mm)
-                                    .expect("checked: beads lie between source and detector")
+                                frame.project(source, r.phantoms[pi].markers[bi].position_mm)
                             };
                             let points: Vec<_> = std::iter::once(start)
                                 .chain(pulse_all.iter())
                                 .chain(std::iter::once(end))
-                                .map(at)
+                                .filter_map(at)
                                 .collect();
                             points.windows(2).map(|p| (p[1] - p[0]).length()).sum()
                         }),
