@@ -58,7 +58,7 @@ echo "median A/B over ${#wall_ratios[@]} pairs: wall $wall, CPU $cpu"
 if [[ -n ${SEQUENCE_TABLE:-} ]]; then
     commit=$(git rev-parse --short HEAD)$(git diff --quiet HEAD -- crates src || echo "-dirty")
     {
-        echo "<!-- made by: SEQUENCE_TABLE=$SEQUENCE_TABLE bench/sequence.sh; $commit, $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(date -u +%Y-%m-%d) -->"
+        echo "Command: \`SEQUENCE_TABLE=$SEQUENCE_TABLE bench/sequence.sh\` at $commit, $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(date -u +%Y-%m-%d)"
         echo
         echo "| | median wall (s) | A/B wall (median of ${#wall_ratios[@]} pairs) | A/B CPU |"
         echo "|---|---:|---:|---:|"
