@@ -629,8 +629,6 @@ impl Check<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::scenario::from_text;
-    use std::path::Path;
 
     const BASE: &str = r#"
 name = "t"
@@ -649,14 +647,7 @@ phantoms = ["c"]
 "#;
 
     fn messages(extra: &str) -> Vec<String> {
-        match from_text(
-            &format!("{BASE}{extra}"),
-            Path::new("s.toml"),
-            Path::new("."),
-        ) {
-            Ok(l) => l.warnings.iter().map(|d| format!("warning: {d}")).collect(),
-            Err(e) => e.iter().map(|d| d.to_string()).collect(),
-        }
+        crate::scenario::messages_of(&format!("{BASE}{extra}"))
     }
 
     const CYL: &str =

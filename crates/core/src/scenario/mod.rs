@@ -22,6 +22,20 @@ pub use magnitudes::MAX_ABS;
 pub use model::*;
 pub use validate::{MAX_ID_BYTES, MIN_PIXEL_PITCH_MM, id_problem};
 
+/// Every message `s.toml` with `text` gives: its errors, or its warnings (prefixed `warning: `)
+/// when it loads, each with its `file:line:column` (the checks' tests read them).
+#[cfg(test)]
+pub(crate) fn messages_of(text: &str) -> Vec<String> {
+    match from_text(
+        text,
+        std::path::Path::new("s.toml"),
+        std::path::Path::new("."),
+    ) {
+        Ok(l) => l.warnings.iter().map(|d| format!("warning: {d}")).collect(),
+        Err(e) => e.iter().map(|d| d.to_string()).collect(),
+    }
+}
+
 /// One level of the protocol: the binary mode's noise level, or attenuation mode's exposure
 /// factor (then the noise level is 0: noise follows from the photons).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -151,8 +151,7 @@ impl Checker<'_> {
 
 #[cfg(test)]
 mod tests {
-    use crate::scenario::from_text;
-    use std::path::Path;
+    use crate::scenario::messages_of as messages;
 
     const BASE: &str = r#"
 name = "t"
@@ -174,14 +173,6 @@ id = "b"
 id = "B1"
 position_mm = [0, 0, 0]
 "#;
-
-    /// Every message (errors, or warnings when it loads), each with its `file:line:column`.
-    fn messages(text: &str) -> Vec<String> {
-        match from_text(text, Path::new("s.toml"), Path::new(".")) {
-            Ok(l) => l.warnings.iter().map(|d| format!("warning: {d}")).collect(),
-            Err(e) => e.iter().map(|d| d.to_string()).collect(),
-        }
-    }
 
     const MOTION: &str = "[phantoms.motion]\nkeyframes = [{ time_s = 0.0 }, { time_s = 1.0, rotation_deg = [60, 0, 0] }]\n";
     const SEQUENCE: &str = "[sequence]\nframes = 10\nframe_rate_hz = 10\n";
