@@ -104,11 +104,7 @@ fn values<'a>(entries: &'a [(String, String)], key: &str) -> Vec<&'a str> {
 fn have_tiffinfo() -> bool {
     let ok = Command::new("tiffinfo").output().is_ok();
     if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "tiffinfo is missing (apt-get install libtiff-tools); CI must run this test"
-        );
-        eprintln!("SKIPPED the libtiff checks (needs tiffinfo: apt-get install libtiff-tools)");
+        common::skip("the libtiff checks (needs tiffinfo: apt-get install libtiff-tools)");
     }
     ok
 }

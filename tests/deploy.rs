@@ -28,12 +28,8 @@ fn kubernetes_validate() -> Option<PathBuf> {
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "kubernetes-validate is missing (pip install kubernetes-validate==1.37.0); CI must run this test"
-        );
-        eprintln!(
-            "SKIPPED (needs kubernetes-validate: python3 -m venv V && V/bin/pip install kubernetes-validate==1.37.0, then put V/bin on PATH)"
+        common::skip(
+            "(needs kubernetes-validate: python3 -m venv V && V/bin/pip install kubernetes-validate==1.37.0, then put V/bin on PATH)",
         );
         return None;
     }

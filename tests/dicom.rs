@@ -21,11 +21,7 @@ fn have(tool: &str, probe: &[&str], package: &str) -> bool {
         .output()
         .is_ok_and(|o| o.status.success() || !o.stdout.is_empty() || !o.stderr.is_empty());
     if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "{tool} is missing (apt-get install {package}); CI must run this test"
-        );
-        eprintln!("SKIPPED (needs {tool}: apt-get install {package})");
+        common::skip(&format!("(needs {tool}: apt-get install {package})"));
     }
     ok
 }
@@ -39,11 +35,7 @@ fn pydicom_python() -> Option<&'static str> {
             .is_ok_and(|o| o.status.success())
     });
     if found.is_none() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "pydicom is missing (apt-get install python3-pydicom); CI must run this test"
-        );
-        eprintln!("SKIPPED (needs pydicom: apt-get install python3-pydicom)");
+        common::skip("(needs pydicom: apt-get install python3-pydicom)");
     }
     found
 }

@@ -1962,7 +1962,7 @@ fn a_detector_1e_300_mm_wide_is_refused_naming_its_key() {
 #[test]
 fn a_scenario_with_its_mesh_under_dev_shm_validates_and_runs() {
     if !Path::new("/dev/shm").is_dir() {
-        eprintln!("SKIPPED: /dev/shm does not exist on this machine, so class 12 cannot be tried");
+        common::skip("class 12: /dev/shm does not exist on this machine");
         return;
     }
     let shm = match tempfile::Builder::new()
@@ -1971,9 +1971,9 @@ fn a_scenario_with_its_mesh_under_dev_shm_validates_and_runs() {
     {
         Ok(d) => d,
         Err(e) => {
-            eprintln!(
-                "SKIPPED: cannot make a folder under /dev/shm ({e}), so class 12 cannot be tried"
-            );
+            common::skip(&format!(
+                "class 12: cannot make a folder under /dev/shm ({e})"
+            ));
             return;
         }
     };

@@ -233,6 +233,17 @@ fn the_scenario_key_reference_is_the_schema_s_own() {
             "no section {table}"
         );
     }
+    // A doc comment's intra-doc link (`[`path`]` with no target) means nothing to a reader of
+    // the manual: the keys' descriptions must point at pages, not at code.
+    let dangling: Vec<&str> = page
+        .match_indices("`]")
+        .filter(|(i, _)| !page[i + 2..].starts_with('('))
+        .map(|(i, _)| &page[page[..i].rfind('[').unwrap_or(0)..i + 2])
+        .collect();
+    assert!(
+        dangling.is_empty(),
+        "rustdoc links in the keys: {dangling:?}"
+    );
     same_as_committed(KEYS_PAGE, &page);
 }
 

@@ -344,18 +344,8 @@ fn cardan_xzy_deg(r: &DMat3) -> [f64; 3] {
 #[test]
 fn the_knee_s_kinematics_in_the_truth_equal_an_independent_computation_and_the_motion() {
     // dynamic_knee.toml with 12 frames at 12 per second (t = 0 … 0.917 s), one sequence.
-    let text = std::fs::read_to_string(root().join("scenarios/dynamic_knee.toml"))
-        .unwrap()
-        .replace("frames = 100", "frames = 12")
-        .replace("frame_rate_hz = 100.0", "frame_rate_hz = 12.0")
-        .replace("runs_per_level = 5", "runs_per_level = 1")
-        .replace(
-            "\"models/",
-            &format!("\"{}/", root().join("scenarios/models").display()),
-        );
     let tmp = tempfile::tempdir().unwrap();
-    let scenario = tmp.path().join("knee.toml");
-    std::fs::write(&scenario, text).unwrap();
+    let scenario = small_knee(tmp.path(), 12, 1);
     let out = tmp.path().join("out");
     let models = root().join("scenarios/models");
     rsasim_ok(&[
@@ -415,4 +405,202 @@ fn the_knee_s_kinematics_in_the_truth_equal_an_independent_computation_and_the_m
     );
     assert!(worst_independent < 1e-9, "{worst_independent}");
     assert!(worst_circle < 1e-3, "{worst_circle}");
+}
+
+/// `dynamic_knee.toml` as a small test scenario: `frames` frames at `frames` per second, `runs`
+/// sequences, the models' paths absolute. Returns the scenario file.
+fn small_knee(dir: &std::path::Path, frames: u32, runs: u32) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(root().join("scenarios/dynamic_knee.toml"))
+        .unwrap()
+        .replace("frames = 100", &format!("frames = {frames}"))
+        .replace(
+            "frame_rate_hz = 100.0",
+            &format!("frame_rate_hz = {frames}.0"),
+        )
+        .replace("runs_per_level = 5", &format!("runs_per_level = {runs}"))
+        .replace(
+            "\"models/",
+            &format!("\"{}/", root().join("scenarios/models").display()),
+        );
+    let scenario = dir.join("knee.toml");
+    std::fs::write(&scenario, text).unwrap();
+    scenario
+}
+
+/// Rows of a rotation, as results files hold it.
+fn rows(r: &DMat3) -> [[f64; 3]; 3] {
+    [0, 1, 2].map(|i| r.row(i).to_array())
+}
+
+/// A rotation by `deg` about the unit axis `u` (Rodrigues, by hand).
+fn about(u: DVec3, deg: f64) -> DMat3 {
+    let (s, c) = deg.to_radians().sin_cos();
+    let k = DMat3::from_cols(
+        DVec3::new(0.0, u.z, -u.y),
+        DVec3::new(-u.z, 0.0, u.x),
+        DVec3::new(u.y, -u.x, 0.0),
+    );
+    DMat3::IDENTITY + k * s + k * k * (1.0 - c)
+}
+
+#[test]
+fn evaluate_scores_a_sequence_frame_by_frame_against_errors_made_by_hand() {
+    // Two sequences of 4 frames of the knee. Sequence n0-r00: the femur measured 0.05 mm off
+    // along its own x axis (e1, the flexion axis: its anatomical frame is not turned), the tibia
+    // exact. Sequence n0-r01: the femur exact, the tibia turned 0.1° about e1 through its own
+    // origin (the distal anatomical frame's). By hand (Grood–Suntay): moving the proximal origin
+    // by d changes q by −d along each axis, so q1 is off by −0.05 mm and q2, q3 by 0 (e2 ⟂ e1;
+    // e3 ⟂ e1 at the truth's zero ab/adduction); turning the distal frame about e1 adds to the
+    // first Cardan angle: flexion off by +0.1°, ab/adduction and rotation by 0, q1 by 0 (o_d and
+    // e1 stay).
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = small_knee(tmp.path(), 4, 2);
+    let out = tmp.path().join("out");
+    let models = root().join("scenarios/models");
+    rsasim_ok(&[
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--allow-dir",
+        models.to_str().unwrap(),
+    ]);
+    let all = truths(&out);
+    assert_eq!(all.len(), 8);
+    let mut femur_x_by_hand = Vec::new();
+    for (dir, truth) in &all {
+        let run = &truth.run;
+        let second = run.frame.as_ref().unwrap().sequence == "n0-r01";
+        let pose = |id: &str| run.phantoms.iter().find(|p| p.id == id).unwrap().pose();
+        let (femur, tibia) = (pose("femur"), pose("tibia"));
+        let e1 = femur.rotation.x_axis;
+        let femur_position = if second {
+            femur.position_mm
+        } else {
+            femur.position_mm + e1 * 0.05
+        };
+        femur_x_by_hand.push(femur_position.x - femur.position_mm.x);
+        let tibia_rotation = if second {
+            about(e1, 0.1) * tibia.rotation
+        } else {
+            tibia.rotation
+        };
+        let pose_json = |id: &str, p: DVec3, r: &DMat3| serde_json::json!({"id": id, "position_mm": p.to_array(), "rotation": rows(r)});
+        let measured = serde_json::json!({
+            "format": "rsasim-measured/1",
+            "run": run.id,
+            "software": "errors by hand",
+            "sources": run.sources.iter().map(|s| serde_json::json!({"id": s.id, "position_mm": s.position_mm.to_array()})).collect::<Vec<_>>(),
+            "detectors": run.detectors.iter().map(|d| pose_json(&d.id, d.position_mm, &d.rotation)).collect::<Vec<_>>(),
+            "phantoms": [
+                pose_json("femur", femur_position, &femur.rotation),
+                pose_json("tibia", tibia.position_mm, &tibia_rotation),
+            ],
+        });
+        std::fs::write(
+            dir.join("measured.json"),
+            serde_json::to_vec_pretty(&measured).unwrap(),
+        )
+        .unwrap();
+    }
+    let options = Options {
+        measured: MeasuredSource::PerRun("measured.json".into()),
+        confidence: Confidence::default(),
+        mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+        study: Default::default(),
+        xmalab_2d: Default::default(),
+    };
+    let report = evaluate(&out, &options).unwrap_or_else(|e| panic!("{e:?}"));
+    let q = report.sequence.as_ref().expect("a sequence section");
+    assert_eq!(q.frames, 4);
+    let [level] = q.levels.as_slice() else {
+        panic!("one level")
+    };
+    assert_eq!(level.sequences, ["n0-r00", "n0-r01"]);
+    let dof = |entity: &str, label: &str| {
+        level
+            .entities
+            .iter()
+            .find(|e| e.id == entity)
+            .unwrap()
+            .dofs
+            .iter()
+            .find(|d| d.label == label)
+            .unwrap_or_else(|| panic!("{entity} {label}"))
+    };
+    let close = |got: f64, want: f64, what: &str| {
+        assert!((got - want).abs() < 1e-9, "{what}: {got} against {want}");
+    };
+    // The joint, by hand.
+    let flexion = dof("knee", "flexion α");
+    assert_eq!(flexion.n, 8);
+    close(flexion.bias, 0.05, "flexion bias");
+    close(flexion.rms, (4.0 * 0.01 / 8.0f64).sqrt(), "flexion RMS");
+    close(flexion.max_error, 0.1, "flexion largest error");
+    assert!(flexion.max_error_run.starts_with("n0-r01-"));
+    close(
+        flexion.worst_frame_trueness,
+        0.05,
+        "flexion per-frame trueness",
+    );
+    // Two sequences per frame, errors 0 and 0.1: s_r = 0.1/√2; every frame's mean the same.
+    close(flexion.analysis.s_r, 0.1 / 2f64.sqrt(), "flexion s_r");
+    close(flexion.analysis.s_l, 0.0, "flexion s_L");
+    for label in [
+        "ab/adduction β",
+        "rotation γ",
+        "q2 (along e2)",
+        "q3 (along e3)",
+    ] {
+        if label.starts_with('q') {
+            // Turning the tibia turns e2 and e3: only sequence n0-r00 is exact there.
+            let d = dof("knee", label);
+            for p in &d.series[0].points {
+                close(p.error, 0.0, label);
+            }
+        } else {
+            close(dof("knee", label).max_error, 0.0, label);
+        }
+    }
+    let q1 = dof("knee", "q1 (along e1)");
+    close(q1.bias, -0.025, "q1 bias");
+    close(q1.max_error, -0.05, "q1 largest error");
+    for p in &q1.series[1].points {
+        close(p.error, 0.0, "q1 in n0-r01");
+    }
+    // The femur: its x error is the offset's world x component, frame by frame.
+    let x = dof("femur", "x");
+    let got: Vec<f64> = x
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.error))
+        .collect();
+    for (g, w) in got.iter().zip(&femur_x_by_hand) {
+        close(*g, *w, "femur x");
+    }
+    // Truth against measured: the truth's flexion rises over time, 60° at t = 0.99 s.
+    for p in &flexion.series[0].points {
+        close(p.truth, (60.0 * p.time_s / 0.99).min(60.0), "true flexion");
+        close(p.measured, p.truth, "measured flexion, exact sequence");
+    }
+    // The written reports: the table in Markdown, two plots per degree of freedom in HTML,
+    // every frame's values in frames.csv.
+    let reports = tmp.path().join("report");
+    rsasim_ok(&[
+        "evaluate",
+        out.to_str().unwrap(),
+        "--measured",
+        "measured.json",
+        "--report",
+        reports.to_str().unwrap(),
+    ]);
+    let md = std::fs::read_to_string(reports.join("report.md")).unwrap();
+    assert!(md.contains("## Dynamic exam: frame by frame"), "{md}");
+    assert!(md.contains("| knee (joint femur → tibia) | flexion α | deg | 8 | 0.050 |"));
+    let html = std::fs::read_to_string(reports.join("report.html")).unwrap();
+    let section = &html[html.find("id=\"sequence\"").unwrap()..];
+    let dofs: usize = level.entities.iter().map(|e| e.dofs.len()).sum();
+    assert_eq!(dofs, 18);
+    assert_eq!(section.matches("<svg").count(), 2 * dofs);
+    let csv = std::fs::read_to_string(reports.join("frames.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 8 * dofs);
 }

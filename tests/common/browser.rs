@@ -19,12 +19,10 @@ pub fn tool_or_skip(test: &str, tools: &[&str], package: &str) -> Option<PathBuf
     if let Some(found) = tools.iter().find_map(|t| on_path(t)) {
         return Some(found);
     }
-    let line = format!(
-        "SKIPPED {test} (needs {}: apt-get install {package})",
+    super::skip(&format!(
+        "{test} (needs {}: apt-get install {package})",
         tools.join(" or ")
-    );
-    assert!(std::env::var_os("CI").is_none(), "{line}; CI must have it");
-    eprintln!("\n********** {line} **********\n");
+    ));
     None
 }
 

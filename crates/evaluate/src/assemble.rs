@@ -72,6 +72,15 @@ fn detector_orientation_columns() -> Vec<Column> {
     ]
 }
 
+/// The models of `run`, the phantoms scored (every one but the calibration box), in order.
+pub fn model_ids(run: &rsasim_core::expand::Run) -> Vec<&str> {
+    run.phantoms
+        .iter()
+        .filter(|p| p.kind != "calibration_box")
+        .map(|p| p.id.as_str())
+        .collect()
+}
+
 /// Inputs of [`assemble`]: truth runs with their measurement (None = not measured).
 pub struct Scored<'a> {
     /// The run's truth.
@@ -154,12 +163,7 @@ pub fn assemble(
             )
         })
         .collect();
-    let models: Vec<&str> = first
-        .phantoms
-        .iter()
-        .filter(|p| p.kind != "calibration_box")
-        .map(|p| p.id.as_str())
-        .collect();
+    let models = model_ids(first);
     let mut phantoms: Vec<Samples> = models
         .iter()
         .map(|id| {

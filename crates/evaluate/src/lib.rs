@@ -16,6 +16,7 @@ pub mod iso5725;
 pub mod report;
 pub mod residual;
 pub mod rotation;
+pub mod sequence;
 pub mod stats;
 pub mod study;
 pub mod table;
@@ -211,6 +212,7 @@ pub fn evaluate_with_truth(
         .collect();
     let (tables, mtpm, group_analyses, excluded, runs_scored) =
         assemble(&scored, &mtpm_points, &options.confidence);
+    let sequence = sequence::score(&loaded.scenario, &scored);
     check_finite(&tables, mtpm.as_ref(), &results_file)?;
     let repaired_rotations: usize = measurements.values().map(|m| m.repaired_rotations).sum();
     if repaired_rotations > 0 {
@@ -248,6 +250,7 @@ pub fn evaluate_with_truth(
         mtpm_threshold_mm: options.mtpm_threshold_mm,
         group_analyses,
         study: study_report,
+        sequence,
     })
 }
 

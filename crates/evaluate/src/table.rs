@@ -111,6 +111,9 @@ pub struct Report {
     /// A clinical study's migration analysis (folders with `study.json`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub study: Option<super::study::StudyReport>,
+    /// A dynamic exam's scores over time (folders whose runs are frames of sequences).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sequence: Option<super::sequence::SequenceSection>,
 }
 
 impl Row {

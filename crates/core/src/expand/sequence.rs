@@ -22,7 +22,6 @@
 
 use super::{FrameState, JointState, Run, frame_at};
 use crate::geometry::Pose;
-use crate::geometry::joint::grood_suntay;
 use crate::phantom::PhantomModel;
 use crate::scenario::Scenario;
 
@@ -80,24 +79,17 @@ pub fn joint_states(s: &Scenario, run: &Run) -> Vec<JointState> {
     let Some(q) = &s.sequence else {
         return Vec::new();
     };
-    let frame_of = |id: &str, spec: &crate::scenario::FrameSpec| {
-        let phantom = run
-            .phantoms
+    let pose_of = |id: &str| {
+        run.phantoms
             .iter()
             .find(|p| p.id == id)
-            .expect("validated joint phantom");
-        phantom.pose().compose(&Pose::from_position_euler_deg(
-            spec.position_mm,
-            spec.rotation_deg,
-        ))
+            .expect("validated joint phantom")
+            .pose()
     };
     q.joints
         .iter()
         .map(|j| {
-            let k = grood_suntay(
-                &frame_of(&j.proximal, &j.proximal_frame),
-                &frame_of(&j.distal, &j.distal_frame),
-            );
+            let k = j.kinematics(&pose_of(&j.proximal), &pose_of(&j.distal));
             JointState {
                 id: j.id.clone(),
                 angles_deg: k.angles_deg,

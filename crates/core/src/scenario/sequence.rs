@@ -7,6 +7,8 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::study::FrameSpec;
+use crate::geometry::Pose;
+use crate::geometry::joint::{JointAngles, grood_suntay};
 use crate::geometry::trajectory::{Key, Trajectory, TrajectoryError};
 
 /// A sequence of frames at a fixed rate: every run of the protocol becomes `frames` runs, one per
@@ -30,7 +32,7 @@ pub struct Sequence {
     #[serde(default = "Sequence::default_pulse_samples")]
     pub pulse_samples: u32,
     /// Joints whose kinematics the truth of every frame gives, in the joint coordinate system
-    /// of Grood and Suntay ([`crate::geometry::joint`]). Default: none.
+    /// of Grood and Suntay (Conventions, "Dynamic exams"). Default: none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub joints: Vec<JointSpec>,
 }
@@ -56,6 +58,25 @@ pub struct JointSpec {
     /// (proximal), x medio-lateral, z anterior. Default: the phantom's own frame.
     #[serde(default)]
     pub distal_frame: FrameSpec,
+}
+
+impl JointSpec {
+    /// The joint's kinematics ([`crate::geometry::joint`]) with its proximal phantom at
+    /// `proximal` and its distal phantom at `distal` (world ← local poses): the anatomical
+    /// frames are those poses composed with `proximal_frame` and `distal_frame`. The truth's
+    /// `frame.joints` and `rsasim evaluate`'s measured kinematics both come from here.
+    pub fn kinematics(&self, proximal: &Pose, distal: &Pose) -> JointAngles {
+        let anatomical = |pose: &Pose, spec: &FrameSpec| {
+            pose.compose(&Pose::from_position_euler_deg(
+                spec.position_mm,
+                spec.rotation_deg,
+            ))
+        };
+        grood_suntay(
+            &anatomical(proximal, &self.proximal_frame),
+            &anatomical(distal, &self.distal_frame),
+        )
+    }
 }
 
 impl Sequence {

@@ -116,6 +116,7 @@ pub fn report() -> Report {
             analysis,
         }],
         study: None,
+        sequence: None,
     };
     let sig: Vec<Significance> = report.tables[0].rows[0]
         .cells

@@ -107,6 +107,9 @@ pub fn html(report: &Report) -> String {
     if let Some(study) = &report.study {
         super::study::html(&mut s, study);
     }
+    if let Some(q) = &report.sequence {
+        super::sequence::html(&mut s, q);
+    }
     s.push_str("</body>\n</html>\n");
     s
 }

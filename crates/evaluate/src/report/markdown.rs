@@ -72,6 +72,9 @@ pub fn markdown(report: &Report) -> String {
     if let Some(study) = &report.study {
         super::study::markdown(&mut s, study);
     }
+    if let Some(q) = &report.sequence {
+        super::sequence::markdown(&mut s, q);
+    }
     s
 }
 

@@ -23,6 +23,7 @@ mod latex;
 mod markdown;
 mod number;
 pub mod pdf;
+mod sequence;
 mod study;
 mod svg;
 pub mod sweep;
@@ -140,7 +141,8 @@ pub fn write_reports(
 }
 
 /// Writes `report.<ext>` for each of `formats` (duplicates are written once), and `iso5725.csv`
-/// beside `report.csv` when CSV is chosen, into a folder staged beside `target`, then swaps it in
+/// beside `report.csv` when CSV is chosen (and, for a dynamic exam, `frames.csv`: every frame's
+/// values), into a folder staged beside `target`, then swaps it in
 /// whole: the folder holds exactly these files (and the marker), never stale ones of an earlier
 /// run. PDF is printed by `browser` (an error without one; find it with [`pdf::find_browser`]
 /// before claiming the folder). Returns the final paths written, in order.
@@ -178,6 +180,13 @@ pub fn write_reports_into(
                 csv_iso5725(report).as_bytes(),
             )?;
             written.push(dir.join("iso5725.csv"));
+            if let Some(q) = &report.sequence {
+                write_staged(
+                    &staged.path().join("frames.csv"),
+                    sequence::frames_csv(q).as_bytes(),
+                )?;
+                written.push(dir.join("frames.csv"));
+            }
         }
     }
     staged.commit()?;
