@@ -345,16 +345,7 @@ fn cardan_xzy_deg(r: &DMat3) -> [f64; 3] {
 fn the_knee_s_kinematics_in_the_truth_equal_an_independent_computation_and_the_motion() {
     // dynamic_knee.toml with 12 frames at 12 per second (t = 0 … 0.917 s), one sequence.
     let tmp = tempfile::tempdir().unwrap();
-    let scenario = small_knee(tmp.path(), 12, 1);
-    let out = tmp.path().join("out");
-    let models = root().join("scenarios/models");
-    rsasim_ok(&[
-        scenario.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--allow-dir",
-        models.to_str().unwrap(),
-    ]);
+    let out = small_knee(tmp.path(), 12, 1);
     let t = truths(&out);
     assert_eq!(t.len(), 12);
     let (mut worst_independent, mut worst_circle) = (0.0f64, 0.0f64);
@@ -407,9 +398,10 @@ fn the_knee_s_kinematics_in_the_truth_equal_an_independent_computation_and_the_m
     assert!(worst_circle < 1e-3, "{worst_circle}");
 }
 
-/// `dynamic_knee.toml` as a small test scenario: `frames` frames at `frames` per second, `runs`
-/// sequences, the models' paths absolute. Returns the scenario file.
+/// `dynamic_knee.toml` as a small test scenario, run into `dir/out`: `frames` frames at
+/// `frames` per second, `runs` sequences, the models' paths absolute. Returns the output folder.
 fn small_knee(dir: &std::path::Path, frames: u32, runs: u32) -> std::path::PathBuf {
+    let models = root().join("scenarios/models");
     let text = std::fs::read_to_string(root().join("scenarios/dynamic_knee.toml"))
         .unwrap()
         .replace("frames = 100", &format!("frames = {frames}"))
@@ -418,13 +410,18 @@ fn small_knee(dir: &std::path::Path, frames: u32, runs: u32) -> std::path::PathB
             &format!("frame_rate_hz = {frames}.0"),
         )
         .replace("runs_per_level = 5", &format!("runs_per_level = {runs}"))
-        .replace(
-            "\"models/",
-            &format!("\"{}/", root().join("scenarios/models").display()),
-        );
+        .replace("\"models/", &format!("\"{}/", models.display()));
     let scenario = dir.join("knee.toml");
     std::fs::write(&scenario, text).unwrap();
-    scenario
+    let out = dir.join("out");
+    rsasim_ok(&[
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--allow-dir",
+        models.to_str().unwrap(),
+    ]);
+    out
 }
 
 /// Rows of a rotation, as results files hold it.
@@ -454,16 +451,7 @@ fn evaluate_scores_a_sequence_frame_by_frame_against_errors_made_by_hand() {
     // first Cardan angle: flexion off by +0.1°, ab/adduction and rotation by 0, q1 by 0 (o_d and
     // e1 stay).
     let tmp = tempfile::tempdir().unwrap();
-    let scenario = small_knee(tmp.path(), 4, 2);
-    let out = tmp.path().join("out");
-    let models = root().join("scenarios/models");
-    rsasim_ok(&[
-        scenario.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--allow-dir",
-        models.to_str().unwrap(),
-    ]);
+    let out = small_knee(tmp.path(), 4, 2);
     let all = truths(&out);
     assert_eq!(all.len(), 8);
     let mut femur_x_by_hand = Vec::new();
