@@ -22,6 +22,7 @@ const GOLDEN: &[&str] = &[
     "small_attenuation",
     "small_sampled",
     "small_unsharp",
+    "small_sequence",
 ];
 
 /// The crate version the golden hashes were blessed at.
