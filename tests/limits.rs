@@ -184,3 +184,81 @@ fn a_600_kb_line_is_not_echoed_whole() {
     assert_eq!(code, Some(2), "{stderr}");
     assert!(stderr.len() < 3_000, "{} bytes of errors", stderr.len());
 }
+
+/// Runs rsasim with `args` (and `RAYON_NUM_THREADS=2`) and returns its exit status and its peak
+/// resident set, bytes, as the kernel counts it (`wait4`'s `ru_maxrss`, KiB on Linux).
+#[cfg(target_os = "linux")]
+fn peak_rss_bytes(args: &[&str]) -> (i32, u64) {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_rsasim"))
+        .args(args)
+        .current_dir(common::root())
+        .env("RAYON_NUM_THREADS", "2")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = libc::pid_t::try_from(child.id()).unwrap();
+    let mut status = 0;
+    // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child `pid`.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    assert_eq!(r, pid, "wait4");
+    (
+        libc::WEXITSTATUS(status),
+        u64::try_from(usage.ru_maxrss).unwrap() * 1024,
+    )
+}
+
+/// `validate`'s "about N MB of memory" as bytes (its units are powers of 1000, as it prints).
+fn estimated_memory_bytes(validate_said: &str) -> u64 {
+    let (_, rest) = validate_said.split_once("about ").unwrap();
+    let mut words = rest.split_whitespace();
+    let number: f64 = words.next().unwrap().parse().unwrap();
+    let unit = match words.next().unwrap() {
+        "kB" | "KB" => 1e3,
+        "MB" => 1e6,
+        "GB" => 1e9,
+        u => panic!("unit {u}"),
+    };
+    (number * unit) as u64
+}
+
+/// The memory `validate` announces bounds what a run takes: the kernel's count of the run's peak
+/// resident set, on two threads, for a golden scenario and for one large image.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_memory_estimate_bounds_the_measured_peak() {
+    let tmp = tempfile::tempdir().unwrap();
+    let large = tmp.path().join("large.toml");
+    std::fs::write(
+        &large,
+        BASE.replace("pixels = [64, 64]", "pixels = [2000, 2000]")
+            .replace("noise_levels = [0.0, 0.5]", "noise_levels = [0.5]"),
+    )
+    .unwrap();
+    let golden = common::root().join("scenarios/golden/small_biplanar.toml");
+    for scenario in [golden, large] {
+        let scenario = scenario.to_str().unwrap();
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rsasim"))
+            .args(["validate", scenario])
+            .current_dir(common::root())
+            .env("RAYON_NUM_THREADS", "2")
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        // validate reports on standard error.
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(said.contains("with 2 threads"), "{said}");
+        let estimate = estimated_memory_bytes(&said);
+        let out = tmp.path().join("out");
+        let (code, peak) = peak_rss_bytes(&[scenario, "--out", out.to_str().unwrap()]);
+        assert_eq!(code, 0, "{scenario}");
+        std::fs::remove_dir_all(&out).unwrap();
+        eprintln!("{scenario}: peak {peak} B, estimated {estimate} B");
+        assert!(peak > 1_000_000, "a run takes more than 1 MB: {peak}");
+        assert!(
+            peak <= estimate,
+            "{scenario}: peak {peak} B above the estimate {estimate} B"
+        );
+    }
+}
