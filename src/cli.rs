@@ -326,6 +326,12 @@ pub struct EvaluateArgs {
     /// between one and two years that predicts loosening).
     #[arg(long, default_value_t = rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM, value_name = "MM")]
     pub mtpm_threshold_mm: f64,
+    /// The true source position the sources are scored against: `geometric` (the focal
+    /// spot's centre, `position_mm`) or `effective` (its intensity-weighted centre,
+    /// `effective_position_mm`, where the truth has one: what a calibration of the images
+    /// finds). The report says which.
+    #[arg(long, value_name = "WHICH", default_value = "geometric")]
+    pub source_truth: SourceTruthArg,
     /// Folder the reports are written to. Default: OUT/report-<results file stem>, e.g.
     /// OUT/report-measured-rsasim-dlt-markers, so reports of two softwares never collide.
     /// On a sweep folder: the summary's folder (default DIR/sweep-report).
@@ -574,6 +580,7 @@ impl EvaluateArgs {
                 .map(|f| ReportFormat::from_str(f, false).expect("a default format"))
                 .collect(),
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
+            source_truth: SourceTruthArg::Geometric,
             report: None,
             truth: None,
             migration_csv: None,
@@ -742,6 +749,22 @@ impl From<ExportTarget> for rsasim::interop::export::Target {
         match t {
             ExportTarget::Xmalab => Self::Xmalab,
             ExportTarget::Autoscoper => Self::Autoscoper,
+        }
+    }
+}
+
+/// `evaluate --source-truth` ([`rsasim::evaluate::SourceTruth`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SourceTruthArg {
+    Geometric,
+    Effective,
+}
+
+impl From<SourceTruthArg> for rsasim::evaluate::SourceTruth {
+    fn from(s: SourceTruthArg) -> Self {
+        match s {
+            SourceTruthArg::Geometric => Self::Geometric,
+            SourceTruthArg::Effective => Self::Effective,
         }
     }
 }

@@ -42,6 +42,7 @@ fn options() -> Options {
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         study: Default::default(),
         xmalab_2d: Default::default(),
+        source_truth: Default::default(),
     }
 }
 

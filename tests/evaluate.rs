@@ -125,6 +125,7 @@ fn options() -> Options {
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         study: Default::default(),
         xmalab_2d: Default::default(),
+        source_truth: Default::default(),
     }
 }
 
@@ -933,4 +934,70 @@ fn attenuation_reports_label_their_rows_by_exposure() {
     assert!(md.contains("| ×1 |") && md.contains("| ×0.25 |"), "{md}");
     assert!(md.contains("2 exposure level(s) (×1, ×0.25)"), "{md}");
     assert!(!md.contains("| Noise |"));
+}
+
+/// `--source-truth`: with a focal spot whose emission falls 60 % towards +r (uniform 1.2 mm,
+/// 3×3: its intensity-weighted centre lies 0.16/2.1 mm towards −r, by hand from the weights
+/// 0.5, 0.7, 0.9), sources measured exactly at the spot's centre score 0 against the geometric
+/// truth and +0.16/2.1 mm along r against the effective one; the report says which.
+#[test]
+fn sources_are_scored_against_the_geometric_or_the_effective_source() {
+    let text = std::fs::read_to_string(common::root().join("tests/scenarios/evaluate.toml"))
+        .unwrap()
+        .replacen(
+            "[output]",
+            "[imaging.focal_spot]\nsize_mm = 1.2\nsamples = 3\nintensity_fall_percent = 60.0\nanode_direction = \"+r\"\n\n[output]",
+            1,
+        )
+        .replace(
+            "\"../../scenarios/models/",
+            &format!("\"{}/scenarios/models/", common::root().display()),
+        );
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = tmp.path().join("spot.toml");
+    std::fs::write(&scenario, text).unwrap();
+    let out = tmp.path().join("out");
+    let models = common::root().join("scenarios/models");
+    common::rsasim_ok(&[
+        scenario.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--allow-dir",
+        models.to_str().unwrap(),
+    ]);
+    for (dir, truth) in truths(&out) {
+        let mut m = measured_with_known_errors(&truth, 0);
+        for s in &mut m.sources {
+            s.position_mm = truth
+                .run
+                .sources
+                .iter()
+                .find(|t| t.id == s.id)
+                .unwrap()
+                .position_mm
+                .to_array();
+        }
+        write_measured(&dir, &m);
+    }
+    let score = |source_truth| {
+        let report = evaluate(
+            &out,
+            &Options {
+                source_truth,
+                ..options()
+            },
+        )
+        .unwrap();
+        let r = cell(table(&report, "sources"), 0, "tube1", "r").trueness;
+        (r, report.notes.join("\n"))
+    };
+    let (geometric, note) = score(rsasim::evaluate::SourceTruth::Geometric);
+    assert!(geometric.abs() < 1e-9, "{geometric}");
+    assert!(note.contains("geometric centre (position_mm)"), "{note}");
+    let (effective, note) = score(rsasim::evaluate::SourceTruth::Effective);
+    assert!((effective - 0.16 / 2.1).abs() < 1e-9, "{effective}");
+    assert!(
+        note.contains("intensity-weighted centre (effective_position_mm)"),
+        "{note}"
+    );
 }

@@ -319,6 +319,7 @@ fn evaluate_xmalab(
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             study: Default::default(),
             xmalab_2d,
+            source_truth: Default::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{name}: {e:?}"))

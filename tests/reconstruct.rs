@@ -160,6 +160,7 @@ fn run_reconstruct_evaluate_meets_the_accuracy_bounds_without_reading_truth() {
                 mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
                 study: Default::default(),
                 xmalab_2d: Default::default(),
+                source_truth: Default::default(),
             },
         )
         .unwrap();
@@ -229,6 +230,7 @@ fn reconstruct_without_truth(out: &std::path::Path, args: &[&str], name: &str) -
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             study: Default::default(),
             xmalab_2d: Default::default(),
+            source_truth: Default::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"))

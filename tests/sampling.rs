@@ -12,15 +12,22 @@ use rsasim::trace::Object;
 /// Centroid errors (px, Euclidean) of every bead of the first `runs` runs of the paper's
 /// biplanar protocol, each bead alone in a window around it, at noise 0.
 fn centroid_errors(runs: usize, sampling: &Sampling) -> Vec<f64> {
+    centroid_errors_from(runs, sampling, 0.0)
+}
+
+/// [`centroid_errors`] against the projection of each bead's centre from the source moved
+/// `offset_r_mm` along its detector's r axis.
+fn centroid_errors_from(runs: usize, sampling: &Sampling, offset_r_mm: f64) -> Vec<f64> {
     let plan = rsasim::simulate::prepare(Path::new("scenarios/biplanar.toml")).expect("loads");
     let mut errors = Vec::new();
     for run in plan.runs.iter().take(runs) {
         for det in &run.detectors {
             let frame = det.frame();
             let source = run.source_of(det);
+            let seen_from = source + frame.pose.rotation.x_axis * offset_r_mm;
             for ph in &run.phantoms {
                 for m in &ph.markers {
-                    let Some(uv) = frame.project(source, m.position_mm) else {
+                    let Some(uv) = frame.project(seen_from, m.position_mm) else {
                         continue;
                     };
                     let r = 6u32;
@@ -100,6 +107,7 @@ fn a_symmetric_focal_spot_leaves_bead_centroids_on_their_truth() {
             profile,
             samples: 3,
             heel_percent_per_100_mm: None,
+            intensity_fall_percent: None,
             anode_direction: None,
         };
         let (p, max, n) = p95(centroid_errors(4, &sampling(8, Some(spot))));
@@ -387,4 +395,38 @@ fn adaptive_sampling_stays_within_its_bound_of_full_sampling() {
         "the unsharpness must matter on this crop: {differ} pixels"
     );
     assert_eq!(differ_refined, differ);
+}
+
+#[test]
+fn a_spot_whose_emission_falls_puts_bead_centroids_where_its_effective_source_projects_them() {
+    // A 1.2 mm uniform spot of 5×5 sub-sources whose emission falls 90 % towards +r. By hand:
+    // nodes along r at −0.48, −0.24, 0, 0.24, 0.48 mm get 1 − 0.9·(t/1.2 + ½) = 0.91, 0.73,
+    // 0.55, 0.37, 0.19 (sum 2.75), so the intensity-weighted centre lies −0.432/2.75 mm along r.
+    let spot = rsasim::scenario::FocalSpot {
+        size_mm: 1.2,
+        profile: rsasim::scenario::SpotProfile::Uniform,
+        samples: 5,
+        heel_percent_per_100_mm: None,
+        intensity_fall_percent: Some(90.0),
+        anode_direction: Some(rsasim::scenario::AxisDirection::PlusR),
+    };
+    let shift_r_mm = -0.432 / 2.75;
+    let subs = rsasim::sampling::focal_spot::spot_sub_sources(&spot);
+    let [r, c] = rsasim::sampling::focal_spot::centroid_mm(&subs);
+    assert!((r - shift_r_mm).abs() < 1e-15 && c.abs() < 1e-15, "{r} {c}");
+    // Every bead's intensity centroid (no threshold) is the projection of its centre from that
+    // point (each sub-source's projection is linear in its offset), not from the spot's centre.
+    let sampled = sampling(8, Some(spot));
+    let (effective, _, n) = p95(centroid_errors_from(4, &sampled, shift_r_mm));
+    let (geometric, _, _) = p95(centroid_errors_from(4, &sampled, 0.0));
+    let median = {
+        let mut e = centroid_errors_from(4, &sampled, 0.0);
+        e.sort_by(f64::total_cmp);
+        e[e.len() / 2]
+    };
+    eprintln!(
+        "tilted 1.2 mm spot over {n} beads: p95 {effective:.4} px from the effective source's projection; from the spot's centre p95 {geometric:.4} px, median {median:.4} px"
+    );
+    assert!(effective <= 0.02, "{effective}");
+    assert!(median > 0.1, "{median}");
 }

@@ -136,6 +136,7 @@ fn the_reference_program_tracks_the_moving_component_frame_by_frame() {
             mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
             study: Default::default(),
             xmalab_2d: Default::default(),
+            source_truth: Default::default(),
         },
     )
     .unwrap_or_else(|e| panic!("{e:?}"));
@@ -496,6 +497,7 @@ fn evaluate_scores_a_sequence_frame_by_frame_against_errors_made_by_hand() {
         mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
         study: Default::default(),
         xmalab_2d: Default::default(),
+        source_truth: Default::default(),
     };
     let report = evaluate(&out, &options).unwrap_or_else(|e| panic!("{e:?}"));
     let q = report.sequence.as_ref().expect("a sequence section");

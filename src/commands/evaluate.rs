@@ -82,6 +82,7 @@ pub fn execute(args: EvaluateArgs) -> Outcome {
             y_axis: args.xmalab_2d_y_axis.into(),
             first_pixel: args.xmalab_2d_start_at.into(),
         },
+        source_truth: args.source_truth.into(),
     };
     let reports = Reports {
         formats,

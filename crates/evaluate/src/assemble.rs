@@ -98,6 +98,7 @@ pub fn assemble(
     runs: &[Scored],
     mtpm_points: &MtpmPoints,
     confidence: &Confidence,
+    source_truth: crate::SourceTruth,
 ) -> (
     Vec<Table>,
     Option<Table>,
@@ -213,8 +214,12 @@ pub fn assemble(
                 .iter()
                 .find(|d| d.source == s.id)
                 .map_or(DMat3::IDENTITY, |d| d.rotation);
+            let truth = match (source_truth, s.effective_position_mm) {
+                (crate::SourceTruth::Effective, Some(e)) => DVec3::from_array(e),
+                _ => s.position_mm,
+            };
             match m.sources.get(&s.id) {
-                Some(p) => sources.push(3 * k, level, &position_along(&frame, *p, s.position_mm)),
+                Some(p) => sources.push(3 * k, level, &position_along(&frame, *p, truth)),
                 None => missing.push(format!("source {}", s.id)),
             }
         }

@@ -75,6 +75,21 @@ pub struct Options {
     /// How XMALab's 2-D point exports were written (y axis, first pixel), which their files
     /// do not say.
     pub xmalab_2d: crate::interop::xmalab_points2d::PixelOptions,
+    /// Which source position the sources are scored against.
+    pub source_truth: SourceTruth,
+}
+
+/// The true source position the sources' residuals are taken from (docs/src/reference/conventions.md,
+/// "Focal spot").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SourceTruth {
+    /// `position_mm`: the focal spot's geometric centre (the default).
+    #[default]
+    Geometric,
+    /// `effective_position_mm` where the truth has it (a spot whose emission falls across it),
+    /// else `position_mm`: the spot's intensity-weighted centre, what a calibration of the
+    /// images finds.
+    Effective,
 }
 
 /// The default MTPM threshold, mm: the continuous migration between one and two years above
@@ -210,8 +225,13 @@ pub fn evaluate_with_truth(
             measured: measurements.get(&t.truth.run.id),
         })
         .collect();
-    let (tables, mtpm, group_analyses, excluded, runs_scored) =
-        assemble(&scored, &mtpm_points, &options.confidence);
+    let (tables, mtpm, group_analyses, excluded, runs_scored) = assemble(
+        &scored,
+        &mtpm_points,
+        &options.confidence,
+        options.source_truth,
+    );
+    notes.extend(source_truth_note(&truths, options.source_truth));
     let sequence = sequence::score(&loaded.scenario, &scored);
     check_finite(&tables, mtpm.as_ref(), &results_file)?;
     let repaired_rotations: usize = measurements.values().map(|m| m.repaired_rotations).sum();
@@ -251,6 +271,28 @@ pub fn evaluate_with_truth(
         group_analyses,
         study: study_report,
         sequence,
+    })
+}
+
+/// What the report says of the source truth scored against, when it matters: the truth has an
+/// effective source apart from the focal spot's centre.
+fn source_truth_note(truths: &[input::TruthRun], chosen: SourceTruth) -> Option<String> {
+    let apart = truths
+        .iter()
+        .flat_map(|t| &t.truth.run.sources)
+        .filter_map(|s| {
+            s.effective_position_mm
+                .map(|e| (DVec3::from_array(e) - s.position_mm).length())
+        })
+        .fold(None, |m: Option<f64>, d| Some(m.map_or(d, |m| m.max(d))));
+    let apart = apart?;
+    Some(match chosen {
+        SourceTruth::Geometric => format!(
+            "sources are scored against the focal spot's geometric centre (position_mm); the spot's intensity-weighted centre, which a calibration of the images finds, lies up to {apart:.4} mm from it (score against it with --source-truth effective)"
+        ),
+        SourceTruth::Effective => format!(
+            "sources are scored against the focal spot's intensity-weighted centre (effective_position_mm), up to {apart:.4} mm from its geometric centre"
+        ),
     })
 }
 

@@ -262,6 +262,29 @@ fn assemble(
         .position(|p| p.calibration_box.is_some())
         .map_or(Pose::IDENTITY, |i| phantoms[i]);
     let to_box = box_pose.inverse();
+    let detectors: Vec<DetectorState> = s
+        .detectors
+        .iter()
+        .zip(&drawn.detectors)
+        .map(|(d, pose)| {
+            let pose = to_box.compose(pose);
+            DetectorState {
+                id: d.id.clone(),
+                source: d.source.clone(),
+                position_mm: pose.position_mm,
+                rotation: pose.rotation,
+                pixels: d.pixels,
+                pixel_pitch_mm: d.resolved_pixel_pitch_mm(),
+                bpp: d.bpp,
+            }
+        })
+        .collect();
+    let spot_centre = effective_spot_offset_mm(s);
+    let effective = |id: &str, position: DVec3| {
+        let [r, c] = spot_centre?;
+        let d = detectors.iter().find(|d| d.source == id)?;
+        Some((position + d.rotation.x_axis * r + d.rotation.y_axis * c).to_array())
+    };
 
     Run {
         id: header.id,
@@ -274,28 +297,16 @@ fn assemble(
         sources: drawn
             .sources
             .into_iter()
-            .map(|(id, p)| SourceState {
-                id,
-                position_mm: to_box.to_world(p),
-            })
-            .collect(),
-        detectors: s
-            .detectors
-            .iter()
-            .zip(&drawn.detectors)
-            .map(|(d, pose)| {
-                let pose = to_box.compose(pose);
-                DetectorState {
-                    id: d.id.clone(),
-                    source: d.source.clone(),
-                    position_mm: pose.position_mm,
-                    rotation: pose.rotation,
-                    pixels: d.pixels,
-                    pixel_pitch_mm: d.resolved_pixel_pitch_mm(),
-                    bpp: d.bpp,
+            .map(|(id, p)| {
+                let position_mm = to_box.to_world(p);
+                SourceState {
+                    effective_position_mm: effective(&id, position_mm),
+                    id,
+                    position_mm,
                 }
             })
             .collect(),
+        detectors,
         phantoms: models
             .iter()
             .zip(phantoms)
@@ -331,6 +342,17 @@ fn assemble(
             .collect(),
         frame: None,
     }
+}
+
+/// The offset of the focal spot's intensity-weighted centre from its geometric centre along
+/// the detector's r and c, mm: `None` when they coincide (no spot, or no fall of the emission
+/// across it).
+fn effective_spot_offset_mm(s: &Scenario) -> Option<[f64; 2]> {
+    let spot = s.imaging.focal_spot.as_ref()?;
+    spot.intensity_fall_percent.filter(|&p| p != 0.0)?;
+    Some(crate::sampling::focal_spot::centroid_mm(
+        &crate::sampling::focal_spot::spot_sub_sources(spot),
+    ))
 }
 
 fn offset(rng: &mut ChaCha8Rng, half_widths: [f64; 3]) -> DVec3 {

@@ -101,10 +101,16 @@ impl Run {
 pub struct SourceState {
     /// The scenario's id.
     pub id: String,
-    /// Focus position, mm, box frame.
+    /// Focus position, mm, box frame: the focal spot's geometric centre.
     #[serde(with = "vec3_serde")]
     #[schemars(with = "[f64; 3]")]
     pub position_mm: DVec3,
+    /// The effective source, mm, box frame: the focal spot's intensity-weighted centre as its
+    /// beamline's detector sees it, which is what a calibration of the images finds. Present
+    /// only where it differs from `position_mm`: a spot whose emission falls across it
+    /// (`imaging.focal_spot.intensity_fall_percent`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effective_position_mm: Option<[f64; 3]>,
 }
 
 /// A detector's drawn pose and its pixel grid.

@@ -12,7 +12,7 @@
 //! three-term recurrence `He_{n+1} = x·He_n − n·He_{n−1}`, no transcendental function), the
 //! positive half mirrored so nodes and weights are symmetric bit for bit.
 
-use crate::scenario::SpotProfile;
+use crate::scenario::{AxisDirection, FocalSpot, SpotProfile};
 
 /// One sub-source: its offset from the spot's centre and its share of the photons.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,6 +62,61 @@ pub fn sub_sources(profile: SpotProfile, size_mm: f64, k: u32) -> Vec<SubSource>
         }
     }
     out
+}
+
+/// The sub-sources of `spot` as the scenario gives it: [`sub_sources`], with the weights
+/// tilted by its `intensity_fall_percent` along its anode direction ([`tilted`]). The one place
+/// both the images and the truth's effective source take the spot from.
+pub fn spot_sub_sources(spot: &FocalSpot) -> Vec<SubSource> {
+    let subs = sub_sources(spot.profile, spot.size_mm, spot.samples.max(1));
+    match spot.intensity_fall_percent {
+        Some(p) if p != 0.0 => tilted(
+            subs,
+            spot.size_mm,
+            p,
+            spot.anode_direction.unwrap_or(AxisDirection::MinusC),
+        ),
+        _ => subs,
+    }
+}
+
+/// `subs` with each weight times `max(0, 1 − (p/100)·(t/a + ½))`, t the offset along
+/// `anode` and a the spot's width, renormalised to sum 1: the emission falls linearly by `p`
+/// percent from the cathode-side edge (t = −a/2) to the anode-side edge (t = a/2).
+pub fn tilted(
+    subs: Vec<SubSource>,
+    size_mm: f64,
+    percent: f64,
+    anode: AxisDirection,
+) -> Vec<SubSource> {
+    let along = |o: [f64; 2]| match anode {
+        AxisDirection::PlusR => o[0],
+        AxisDirection::MinusR => -o[0],
+        AxisDirection::PlusC => o[1],
+        AxisDirection::MinusC => -o[1],
+    };
+    let raw: Vec<f64> = subs
+        .iter()
+        .map(|s| s.weight * (1.0 - percent / 100.0 * (along(s.offset_mm) / size_mm + 0.5)).max(0.0))
+        .collect();
+    let total: f64 = raw.iter().sum();
+    subs.iter()
+        .zip(raw)
+        .map(|(s, w)| SubSource {
+            offset_mm: s.offset_mm,
+            weight: w / total,
+        })
+        .collect()
+}
+
+/// The intensity-weighted centre of `subs`: `Σ w·offset` along r and c, mm.
+pub fn centroid_mm(subs: &[SubSource]) -> [f64; 2] {
+    subs.iter().fold([0.0, 0.0], |c, s| {
+        [
+            c[0] + s.weight * s.offset_mm[0],
+            c[1] + s.weight * s.offset_mm[1],
+        ]
+    })
 }
 
 /// `(He_k(x), He_{k−1}(x))` by the three-term recurrence.
@@ -135,6 +190,29 @@ fn hermite_rule(k: u32) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_spot_falling_towards_the_anode_has_its_centre_towards_the_cathode_by_hand() {
+        // Uniform 1.2 mm, 3×3, falling 60 % towards −c: rows at c = −0.4, 0, 0.4 mm (t = 0.4,
+        // 0, −0.4 along the anode) get 1 − 0.6·(t/1.2 + ½) = 0.5, 0.7, 0.9; their shares
+        // 0.5/2.1, 0.7/2.1, 0.9/2.1; the centre c = 0.4·(0.9 − 0.5)/2.1 = 0.16/2.1 mm.
+        let subs = tilted(
+            sub_sources(SpotProfile::Uniform, 1.2, 3),
+            1.2,
+            60.0,
+            AxisDirection::MinusC,
+        );
+        let [r, c] = centroid_mm(&subs);
+        assert!(r.abs() < 1e-15, "{r}");
+        assert!((c - 0.16 / 2.1).abs() < 1e-15, "{c}");
+        assert!((subs.iter().map(|s| s.weight).sum::<f64>() - 1.0).abs() < 1e-15);
+        assert!((subs[0].weight - 0.5 / 2.1 / 3.0).abs() < 1e-15);
+        // No fall: the plain spot, centre 0.
+        assert_eq!(
+            centroid_mm(&sub_sources(SpotProfile::Uniform, 1.2, 3)),
+            [0.0, 0.0]
+        );
+    }
 
     fn moments(nodes: &[(f64, f64)]) -> [f64; 3] {
         let m0: f64 = nodes.iter().map(|n| n.1).sum();

@@ -52,7 +52,7 @@ impl Sampling {
         Sampling {
             samples_per_side: imaging.samples_per_side().max(1),
             sub_sources: match spot {
-                Some(f) => focal_spot::sub_sources(f.profile, f.size_mm, f.samples.max(1)),
+                Some(f) => focal_spot::spot_sub_sources(f),
                 None => vec![SubSource {
                     offset_mm: [0.0, 0.0],
                     weight: 1.0,
@@ -151,6 +151,7 @@ mod tests {
                 profile: SpotProfile::Uniform,
                 samples: 2,
                 heel_percent_per_100_mm: None,
+                intensity_fall_percent: None,
                 anode_direction: None,
             }),
             ..Imaging::default()

@@ -145,6 +145,14 @@ pub struct FocalSpot {
     /// detector centre. Default 0 (none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heel_percent_per_100_mm: Option<f64>,
+    /// The spot's emission across its width (both modes): it falls linearly along
+    /// `anode_direction` by this many percent from the spot's cathode-side edge to its
+    /// anode-side edge (a uniform spot's side, a Gaussian's FWHM; clamped at zero beyond), so
+    /// the spot's intensity-weighted centre — the effective source a calibration of the images
+    /// finds — lies off its geometric centre towards the cathode (truth:
+    /// `sources[].effective_position_mm`). From 0 to below 100; default 0 (a symmetric spot).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity_fall_percent: Option<f64>,
     /// The detector axis pointing towards the anode side: `"+r"`, `"-r"`, `"+c"` or `"-c"`.
     /// Default `"-c"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]

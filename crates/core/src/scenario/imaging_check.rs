@@ -256,13 +256,28 @@ impl Check<'_> {
                 );
             }
         }
+        if let Some(p) = f.intensity_fall_percent {
+            if !(p.is_finite() && (0.0..100.0).contains(&p)) {
+                self.err(
+                    fp.key("intensity_fall_percent"),
+                    format!("a fall of the spot's emission of {p} % is out of range"),
+                    "give how many percent the emission falls from the spot's cathode-side edge to its anode-side edge, from 0 (a symmetric spot) to below 100",
+                );
+            }
+        }
         if !im.is_attenuation() {
+            // The spot's fall is imaged in both modes, and takes its direction from
+            // anode_direction.
+            let direction_used = f.intensity_fall_percent.is_some_and(|p| p != 0.0);
             for (key, given) in [
                 (
                     "heel_percent_per_100_mm",
                     f.heel_percent_per_100_mm.is_some(),
                 ),
-                ("anode_direction", f.anode_direction.is_some()),
+                (
+                    "anode_direction",
+                    f.anode_direction.is_some() && !direction_used,
+                ),
             ] {
                 if given {
                     self.warn(
