@@ -5,8 +5,9 @@ use std::collections::BTreeMap;
 
 use glam::{DMat3, DVec3};
 
-use super::input::{RunMeasurement, TruthRun};
+pub use super::input::{Scored, model_ids};
 use super::iso5725;
+pub use super::residual::{RESOLUTION, quantise};
 use super::residual::{mtpm, orientation_about, position_along};
 use super::stats::{Cell, Confidence};
 use super::table::{Column, ColumnGroup, Excluded, GroupAnalysis, Row, Table};
@@ -38,16 +39,6 @@ impl Samples {
     }
 }
 
-/// Numerical resolution of residuals, in mm or degrees: 1e-12, far below anything physical.
-/// Residuals are rounded to it before any statistic, so an exact reconstruction scores exactly
-/// zero instead of double-precision round-off (≈1e-16) that a significance test would flag.
-pub const RESOLUTION: f64 = 1e-12;
-
-/// `x` rounded to a multiple of [`RESOLUTION`].
-pub fn quantise(x: f64) -> f64 {
-    (x / RESOLUTION).round() * RESOLUTION
-}
-
 fn col(label: &str, latex: &str, unit: &str) -> Column {
     Column {
         label: label.into(),
@@ -70,23 +61,6 @@ fn detector_orientation_columns() -> Vec<Column> {
         col("β_c", r"\beta_{c}", "deg"),
         col("γ_s", r"\gamma_{s}", "deg"),
     ]
-}
-
-/// The models of `run`, the phantoms scored (every one but the calibration box), in order.
-pub fn model_ids(run: &rsasim_core::expand::Run) -> Vec<&str> {
-    run.phantoms
-        .iter()
-        .filter(|p| p.kind != "calibration_box")
-        .map(|p| p.id.as_str())
-        .collect()
-}
-
-/// Inputs of [`assemble`]: truth runs with their measurement (None = not measured).
-pub struct Scored<'a> {
-    /// The run's truth.
-    pub truth: &'a TruthRun,
-    /// What the software reported, if anything.
-    pub measured: Option<&'a RunMeasurement>,
 }
 
 /// Object points for MTPM, by phantom id, in the phantom's local frame.
@@ -331,17 +305,4 @@ pub fn assemble(
     tables.extend(phantoms.into_iter().map(|s| finish(s, &mut analyses)));
     let mtpm_table = (!mtpm_models.is_empty()).then(|| finish(mtpm_samples, &mut analyses));
     (tables, mtpm_table, analyses, excluded, scored)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_off_is_quantised_away_but_real_residuals_are_kept() {
-        assert_eq!(quantise(-3.3e-16), 0.0);
-        assert_eq!(quantise(0.1 + 1e-17), quantise(0.1));
-        assert!((quantise(0.123456789) - 0.123456789).abs() < 1e-12);
-        assert!((quantise(-2.5e-9) + 2.5e-9).abs() < 1e-15);
-    }
 }

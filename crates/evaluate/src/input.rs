@@ -47,6 +47,23 @@ pub struct TruthRun {
     pub truth: Truth,
 }
 
+/// The models of `run`, the phantoms scored (every one but the calibration box), in order.
+pub fn model_ids(run: &rsasim_core::expand::Run) -> Vec<&str> {
+    run.phantoms
+        .iter()
+        .filter(|p| p.kind != "calibration_box")
+        .map(|p| p.id.as_str())
+        .collect()
+}
+
+/// Inputs of the scoring (`assemble`, `sequence`): truth runs with their measurement (None = not measured).
+pub struct Scored<'a> {
+    /// The run's truth.
+    pub truth: &'a TruthRun,
+    /// What the software reported, if anything.
+    pub measured: Option<&'a RunMeasurement>,
+}
+
 /// What a software reported for one run, parsed and checked.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RunMeasurement {

@@ -9,6 +9,16 @@ use glam::{DMat3, DVec3};
 
 use crate::geometry::euler_xyz_deg;
 
+/// Numerical resolution of residuals, in mm or degrees: 1e-12, far below anything physical.
+/// Residuals are rounded to it before any statistic, so an exact reconstruction scores exactly
+/// zero instead of double-precision round-off (≈1e-16) that a significance test would flag.
+pub const RESOLUTION: f64 = 1e-12;
+
+/// `x` rounded to a multiple of [`RESOLUTION`].
+pub fn quantise(x: f64) -> f64 {
+    (x / RESOLUTION).round() * RESOLUTION
+}
+
 /// A position residual along the axes of `frame` (columns = axes): `frameᵀ·(measured − true)`.
 pub fn position_along(frame: &DMat3, measured: DVec3, truth: DVec3) -> [f64; 3] {
     (frame.transpose() * (measured - truth)).to_array()
@@ -34,6 +44,14 @@ pub fn mtpm(points_local: &[DVec3], measured: (DVec3, DMat3), truth: (DVec3, DMa
 mod tests {
     use super::*;
     use crate::geometry::rotation_xyz_deg;
+
+    #[test]
+    fn round_off_is_quantised_away_but_real_residuals_are_kept() {
+        assert_eq!(quantise(-3.3e-16), 0.0);
+        assert_eq!(quantise(0.1 + 1e-17), quantise(0.1));
+        assert!((quantise(0.123456789) - 0.123456789).abs() < 1e-12);
+        assert!((quantise(-2.5e-9) + 2.5e-9).abs() < 1e-15);
+    }
 
     #[test]
     fn a_reconstruction_turned_plus_one_degree_about_x_reports_alpha_plus_one() {

@@ -20,10 +20,10 @@ use std::collections::BTreeMap;
 use glam::DMat3;
 use serde::Serialize;
 
-use crate::assemble::{Scored, model_ids, quantise};
 use crate::geometry::{Pose, euler_xyz_deg};
+use crate::input::{Scored, model_ids};
 use crate::iso5725::{self, Iso5725};
-use crate::residual::{orientation_about, position_along};
+use crate::residual::{orientation_about, position_along, quantise};
 use rsasim_core::scenario::{JointSpec, Scenario};
 
 /// The dynamic exam's section: one part per protocol level.
