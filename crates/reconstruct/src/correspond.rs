@@ -13,7 +13,7 @@
 
 use glam::DVec2;
 
-use super::detect::Blob;
+use super::detect::{Blob, fits_one_bead};
 
 /// A bead's predicted image position.
 #[derive(Debug, Clone, PartialEq)]
@@ -41,8 +41,7 @@ pub struct Match {
 
 /// Whether a blob's area fits a single bead of `expected` pixels.
 fn bead_sized(blob: &Blob, expected: f64) -> bool {
-    let a = blob.area as f64;
-    a >= 0.45 * expected && a <= 1.6 * expected + 2.0
+    fits_one_bead(blob.area, expected)
 }
 
 /// A 2-D affine map `x ↦ A·x + t`.

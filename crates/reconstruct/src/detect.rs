@@ -4,7 +4,8 @@
 //! The paper's images put I_max where an object covers the pixel and Poisson noise (mean
 //! level·I_max, clamped to I_max) everywhere else, so a noisy background pixel reaches I_max only
 //! by chance. Such pixels form tiny components; [`Blob::area`] lets the caller keep only blobs of
-//! a bead's expected size, which is what keeps detection right at every noise level.
+//! a bead's expected size, which is what keeps detection right at every noise level. Two touching
+//! beads make one blob; [`super::split::bead_blobs`] gives each its own.
 
 use glam::DVec2;
 
@@ -19,6 +20,20 @@ pub struct Blob {
     pub bbox: [u32; 4],
 }
 
+/// The smallest and the largest pixel count of one bead's blob when a bead's image is expected
+/// to cover `expected_px` pixels: the pixel-centre sampling of a small disc, a magnification a
+/// few per cent off and motion blur all change the count.
+pub fn one_bead_area_range_px(expected_px: f64) -> (f64, f64) {
+    (0.45 * expected_px, 1.6 * expected_px + 2.0)
+}
+
+/// Whether a blob of `area_px` pixels fits one bead expected to cover `expected_px` pixels
+/// ([`one_bead_area_range_px`]): not a merged pair, not a noise speck, not a mesh shadow.
+pub fn fits_one_bead(area_px: usize, expected_px: f64) -> bool {
+    let (min, max) = one_bead_area_range_px(expected_px);
+    (min..=max).contains(&(area_px as f64))
+}
+
 /// Every 8-connected component of pixels equal to `on` in a `width`-wide row-major image.
 pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
     components(pixels, width, on).1
@@ -27,6 +42,9 @@ pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
 /// [`blobs`] with the label image: `labels[k]` is 1 + the index of pixel `k`'s blob, or 0 for a
 /// pixel that is not `on`.
 pub fn components(pixels: &[u16], width: usize, on: u16) -> (Vec<u32>, Vec<Blob>) {
+    if width == 0 {
+        return (vec![0; pixels.len()], Vec::new());
+    }
     let height = pixels.len() / width;
     let mut label = vec![0u32; pixels.len()];
     let mut out = Vec::new();

@@ -25,6 +25,7 @@ pub mod pipeline;
 pub mod selvik;
 pub mod shadow;
 pub mod silhouette;
+pub mod split;
 pub mod study;
 
 use std::collections::BTreeMap;

@@ -12,7 +12,7 @@ use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::density::{Density, Reading, density};
-use super::detect::{Blob, blobs};
+use super::detect::{Blob, fits_one_bead};
 use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline, nominal_blur_px};
 use super::edge_model::{EdgeModel, MetalTransmission};
 use super::model::View;
@@ -23,6 +23,7 @@ use super::selvik::calibrate_selvik;
 use super::silhouette::{
     GOOD_FIT_PX, REMEASURE_ROUNDS, Remeasure, SilhouetteView, fit_silhouette, refine_remeasured,
 };
+use super::split::bead_blobs;
 use super::{Method, ModelMethod};
 use crate::expand::{DetectorState, PhantomState};
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
@@ -541,7 +542,7 @@ impl BeadImage {
         let imaging = &setup.scenario.imaging;
         if !imaging.is_attenuation() {
             return BeadImage {
-                blobs: blobs(pixels, width, det.i_max()),
+                blobs: bead_blobs(pixels, width, det.i_max(), radius_px),
                 metal: Vec::new(),
                 width,
             };
@@ -688,9 +689,7 @@ fn find_model(
         let candidates: Vec<DVec2> = image
             .blobs
             .iter()
-            .filter(|b| {
-                (b.area as f64) >= 0.45 * expected && (b.area as f64) <= 1.6 * expected + 2.0
-            })
+            .filter(|b| fits_one_bead(b.area, expected))
             .map(|b| b.centroid)
             .collect();
         let box_images: Vec<Prediction> = box_beads
