@@ -18,6 +18,7 @@ taken from each report's report.csv by bench/report_table.py; nothing is typed.
     bench/accuracy.py migration-attenuation   # tka_migration_attenuation.toml ->
                                       #   migration-tka-attenuation.md
 
+The binary is $RSASIM_BIN when set, else the release build (built first).
 Options: --out DIR keeps the output there (default: a temporary folder, removed); --runs N sets
 runs_per_level (a copy of the scenario beside the shipped one, so its model paths resolve;
 removed afterwards); --no-detection skips the detection table of `realistic`/`blurred` (it needs

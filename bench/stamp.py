@@ -62,7 +62,10 @@ def target_dir():
 
 
 def release_binary(build=True):
-    """The release `rsasim`, built first (`cargo build --release --locked --bin rsasim`)."""
+    """$RSASIM_BIN when set (not rebuilt: its version line says what it was built from), else
+    the release `rsasim`, built first (`cargo build --release --locked --bin rsasim`)."""
+    if os.environ.get("RSASIM_BIN"):
+        return pathlib.Path(os.environ["RSASIM_BIN"]).resolve()
     if build:
         subprocess.run(["cargo", "build", "--release", "--locked", "--quiet", "--bin", "rsasim"],
                        cwd=ROOT, check=True)
