@@ -60,7 +60,7 @@ PAPER = {
     "model_position": "up to 0.55 ± 0.16 mm",                                   # Table 4
     "model_orientation": "up to −0.40 ± 0.31°",                                 # Table 4
 }
-# Model-based RSA's targets, from the issue that asked for it (issue 12): 0.1 mm and 0.1°.
+# Model-based RSA's targets, from the issue that asked for it: 0.1 mm and 0.1° per axis.
 TARGET = {"model_position": "0.1 mm", "model_orientation": "0.1°"}
 
 BIPLANAR_ROWS = [
@@ -219,12 +219,12 @@ def cmd_biplanar(args):
                     binary, note=note)
 
         sil = reports["silhouette"]
-        const = lambda key: {"target (issue 12)": TARGET.get(key, "—"),  # noqa: E731
+        const = lambda key: {"target (the issue)": TARGET.get(key, "—"),  # noqa: E731
                              "the paper's tested program (model-based)": PAPER.get(key, "—")}
         rows = [("model position x, y, z", "phantom-.*:position:", const("model_position")),
                 ("model orientation α, β, γ", "phantom-.*:orientation:", const("model_orientation"))]
         table = rt.by_report({"s": sil}, [("reconstruct `--model-method silhouette`", "s")], rows,
-                             constants=["target (issue 12)", "the paper's tested program (model-based)"])
+                             constants=["target (the issue)", "the paper's tested program (model-based)"])
         worst_mm, worst_deg, contour, runs = per_run(o.dir, names["silhouette"])
         sd_mm = max((r["sd"] for r in rt.select(sil, "phantom-.*:position:") if r["sd"] is not None), default=None)
         sd_deg = max((r["sd"] for r in rt.select(sil, "phantom-.*:orientation:") if r["sd"] is not None), default=None)

@@ -27,7 +27,8 @@ load average at the start and at the end.
                                             #   run and test -> first-run-cost.md
 
 Tests run from the release integration-test binary (`cargo test --release --locked --test
-integration`), so one build serves every test table. --tables DIR writes elsewhere.
+integration`), so one build serves every test table; RSASIM_TEST_BIN names that executable to run
+it without cargo, RSASIM_BIN the rsasim binary (bench/stamp.py). --tables DIR writes elsewhere.
 Standard library only.
 """
 
@@ -66,8 +67,15 @@ def run(cmd, env=None, check=True):
 
 
 def cargo_test(filter_, env=None, ignored=False):
-    cmd = ["cargo", "test", "--release", "--locked", "--test", "integration", filter_, "--",
-           "--nocapture", "--test-threads=1"]
+    """Runs the release integration tests matching filter_ with --nocapture: through cargo, or
+    the test executable $RSASIM_TEST_BIN when set (built by `cargo test --release --locked
+    --test integration --no-run`; one build then serves every table without cargo deciding to
+    rebuild in between)."""
+    if os.environ.get("RSASIM_TEST_BIN"):
+        cmd = [os.environ["RSASIM_TEST_BIN"], filter_, "--nocapture", "--test-threads=1"]
+    else:
+        cmd = ["cargo", "test", "--release", "--locked", "--test", "integration", filter_, "--",
+               "--nocapture", "--test-threads=1"]
     if ignored:
         cmd.append("--ignored")
     return run(cmd, env)
