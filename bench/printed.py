@@ -91,7 +91,8 @@ def detection(out, path, command, binary=None):
     """The detection table of an existing attenuation-mode output, written to `path`."""
     text = cargo_test("reconstruct_realistic::measure_detection_on_an_output",
                       {"RSASIM_MEASURE_OUT": str(out)}, ignored=True)
-    rows = [l for l in text.splitlines() if l.startswith("|")]
+    # With --nocapture the test's first line follows libtest's "test … ... " on the same line.
+    rows = [l[l.index("|"):] for l in text.splitlines() if "|" in l and l.rstrip().endswith("|")]
     if len(rows) < 3:
         sys.exit(f"no detection table in the test's output:\n{text[-3000:]}")
     rows = [re.sub(r"^\| ×(\d+(?:\.\d+)?) ", lambda m: f"| ×{float(m.group(1)):g} ", r) for r in rows]
@@ -229,17 +230,22 @@ def cmd_detector_response(args):
                "threads, median of 3, 30 energy bins, 1440²")
 
 
+# Model-based RSA's target per run, from the issue that asked for it: under 2 s.
+RECONSTRUCT_TARGET = {"silhouette": "< 2 s"}
+
+
 def cmd_reconstruct_speed(args):
     binary = stamp.release_binary()
     start = stamp.load()
     text = run(["bash", "bench/reconstruct.sh"] + ([args.out] if args.out else []),
                {"RSASIM_BIN": str(binary)})
-    rows = ["| `--model-method` | per run (calibration of both beamlines + the model), one core | peak memory |",
-            "|---|---|---|"]
+    rows = ["| `--model-method` | per run (calibration of both beamlines + the model), one core | peak memory | target |",
+            "|---|---|---|---|"]
     rss = re.findall(r"peak RSS (\d+) kB", text)
     for k, m in enumerate(re.finditer(r"(?m)^(\w+)\s+([\d.]+) s for (\d+) runs: ([\d.]+) s per run on one core$", text)):
         mem = f"{int(rss[k]) / 1024:.0f} MB" if k < len(rss) else "—"
-        rows.append(f"| `{m[1]}` | {float(m[4]):.2f} s ({float(m[2]):.1f} s for {m[3]} runs) | {mem} |")
+        rows.append(f"| `{m[1]}` | {float(m[4]):.2f} s ({float(m[2]):.1f} s for {m[3]} runs) | {mem} | "
+                    f"{RECONSTRUCT_TARGET.get(m[1], '')} |")
     if len(rows) < 3:
         sys.exit(f"no timings in bench/reconstruct.sh's output:\n{text[-3000:]}")
     write(args, "reconstruct-speed.md", f"bench/printed.py reconstruct-speed{' ' + args.out if args.out else ''}",
