@@ -129,22 +129,25 @@ def cmd_bead_centres(args):
 def cmd_sampling(args):
     binary = stamp.release_binary()
     text = cargo_test("sampling::")
-    rows = ["| 1 mm bead centroid vs truth, paper protocol geometry, noise 0 | p95 | max | beads |",
-            "|---|---|---|---|"]
+    # The tests run in name order; the rows are keyed by kind and put in the table's order.
+    found = {}
     n = lambda x: f"{int(x):,}"  # noqa: E731
     for line in text.splitlines():
         line = line.strip()
         m = re.match(r"^point sampling p95 ([\d.]+) px; 8×8: p95 ([\d.]+) px, max ([\d.]+) px over (\d+) beads$", line)
         if m:
-            rows.append(f"| one ray per pixel centre (the paper) | {m[1]} px | | {n(m[4])} |")
-            rows.append(f"| **`pixel_samples = 8`** (issue 12's target ≤ 0.02 px) | **{m[2]} px** | {m[3]} px | {n(m[4])} |")
+            found["point"] = f"| one ray per pixel centre (the paper) | {m[1]} px | | {n(m[4])} |"
+            found["area"] = f"| **`pixel_samples = 8`** (issue 12's target ≤ 0.02 px) | **{m[2]} px** | {m[3]} px | {n(m[4])} |"
         m = re.match(r"^(Uniform|Gaussian) 1\.2 mm spot, 8×8: p95 ([\d.]+) px, max ([\d.]+) px over (\d+) beads$", line)
         if m:
-            rows.append(f"| 8 × 8 and a 1.2 mm {m[1].lower()} spot (3 × 3) | {m[2]} px | {m[3]} px | {n(m[4])} |")
+            found[m[1]] = f"| 8 × 8 and a 1.2 mm {m[1].replace('Uniform', 'uniform')} spot (3 × 3) | {m[2]} px | {m[3]} px | {n(m[4])} |"
         m = re.match(r"^attenuation, (\d+) beads: point p95 ([\d.]+) px; 8×8 p95 ([\d.]+) px \(max ([\d.]+)\)$", line)
         if m:
-            rows.append(f"| attenuation mode, bead absorption `1 − Q/S_open`, one ray | {m[2]} px | | {n(m[1])} |")
-            rows.append(f"| attenuation mode, 8 × 8 | {m[3]} px | {m[4]} px | {n(m[1])} |")
+            found["attenuation point"] = f"| attenuation mode, bead absorption `1 − Q/S_open`, one ray | {m[2]} px | | {n(m[1])} |"
+            found["attenuation area"] = f"| attenuation mode, 8 × 8 | {m[3]} px | {m[4]} px | {n(m[1])} |"
+    order = ["point", "area", "Uniform", "Gaussian", "attenuation point", "attenuation area"]
+    rows = ["| 1 mm bead centroid vs truth, paper protocol geometry, noise 0 | p95 | max | beads |",
+            "|---|---|---|---|"] + [found[k] for k in order if k in found]
     if len(rows) < 4:
         sys.exit(f"no sampling lines in the tests' output:\n{text[-3000:]}")
     write(args, "sampling-bead-centroids.md", "bench/printed.py sampling", "\n".join(rows), binary,
