@@ -20,15 +20,15 @@ Prints a Markdown table stamped with commit, machine and date.
 import argparse
 import json
 import math
-import os
 import pathlib
-import platform
 import subprocess
 import sys
 import tempfile
-import time
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import stamp  # noqa: E402
+
+ROOT = stamp.ROOT
 
 # What each variant adds to [imaging] and [imaging.detector] of biplanar_realistic.toml: the
 # blurred scenario's settings, one at a time.
@@ -109,19 +109,13 @@ def measure(out):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=4)
-    ap.add_argument("--bin", default=None, help="rsasim binary (default: target/release/rsasim, built)")
+    ap.add_argument("--bin", default=None, help="rsasim binary (default: the release build, built)")
     ap.add_argument("--variants", default=",".join(VARIANTS))
     args = ap.parse_args()
     binary = args.bin
     if binary is None:
-        subprocess.run(["cargo", "build", "--release", "--quiet", "--locked"], cwd=ROOT, check=True)
-        binary = str(ROOT / "target/release/rsasim")
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                            text=True).stdout.strip()
-    cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")),
-               platform.processor())
-    print(f"Command: `bench/bias.py --runs {args.runs}`; commit {commit}; {os.cpu_count()} cores, {cpu}; "
-          f"{time.strftime('%Y-%m-%d')}; `{run([binary, '--version']).strip().splitlines()[0]}`\n")
+        binary = str(stamp.release_binary())
+    print(stamp.line(f"bench/bias.py --runs {args.runs}", binary) + "\n")
     print("| variant | source depth error, mm (mean ± SD) | lateral source error, mm | femur position error, mm | box beads used per view |")
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:

@@ -2,10 +2,15 @@
 # Time per run of the reference RSA program on one core: calibration + marker-based RSA, and
 # calibration + model-based (silhouette) RSA, over every run of an output folder.
 # Usage: bench/reconstruct.sh [OUT]   (default: simulate scenarios/biplanar.toml into a temp folder)
+# The binary is $RSASIM_BIN, else the release build in cargo's target folder (built first).
+# bench/printed.py reconstruct-speed runs it and writes docs/src/results/tables/reconstruct-speed.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=./target/release/rsasim
+bin=${RSASIM_BIN:-}
+if [[ -z $bin ]]; then
+    cargo build --release --locked --quiet --bin rsasim
+    bin=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')/release/rsasim
+fi
 out=${1:-}
 if [[ -z "$out" ]]; then
     tmp=$(mktemp -d)

@@ -6,8 +6,8 @@
 # (default 3), output on /dev/shm when it exists; it prints each run's wall and CPU time (user +
 # system, from /usr/bin/time) and each pair's ratio A/B, then the medians.
 #
-# With SEQUENCE_TABLE=FILE it also writes the result as a Markdown table there, stamped with the
-# commit, the machine and the date (docs/src/results/tables/sequence-speed.md is made so).
+# With SEQUENCE_TABLE=FILE it also writes the result as a Markdown table there, stamped by
+# bench/stamp.py (docs/src/results/tables/sequence-speed.md is made so).
 # Usage: bench/sequence.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -36,6 +36,7 @@ open(sys.argv[2], "w").write(static)
 EOF
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 echo "A: one sequence of 100 frames; B: 100 static exams; $("$bin" --version)"
+load_start=$(python3 bench/stamp.py load)
 wall_ratios=() cpu_ratios=() a_walls=() b_walls=()
 for ((i = 1; i <= ${BENCH_REPEATS:-3}; i++)); do
     for side in A B; do
@@ -57,9 +58,8 @@ median() { printf '%s\n' "$@" | python3 -c 'import statistics, sys; print(round(
 wall=$(median "${wall_ratios[@]}") cpu=$(median "${cpu_ratios[@]}")
 echo "median A/B over ${#wall_ratios[@]} pairs: wall $wall, CPU $cpu"
 if [[ -n ${SEQUENCE_TABLE:-} ]]; then
-    commit=$(git rev-parse --short HEAD)$(git diff --quiet HEAD -- crates src || echo "-dirty")
     {
-        echo "Command: \`SEQUENCE_TABLE=$SEQUENCE_TABLE bench/sequence.sh\` at $commit, $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)), $(date -u +%Y-%m-%d)"
+        python3 bench/stamp.py line --command "SEQUENCE_TABLE=$SEQUENCE_TABLE bench/sequence.sh" --bin "$bin" --load-start "$load_start"
         echo
         echo "| | median wall (s) | A/B wall (median of ${#wall_ratios[@]} pairs) | A/B CPU |"
         echo "|---|---:|---:|---:|"
