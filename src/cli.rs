@@ -283,7 +283,8 @@ pub struct EvaluateArgs {
     pub measured: Option<String>,
     /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
     /// the folder `rsasim export` wrote, where XMALab's exports or Autoscoper's tracking were
-    /// saved.
+    /// saved. A sequence's XMALab or Autoscoper file is DIR/<sequence id>/<name>, one for the
+    /// sequence's trial: line (data row) k is its k-th frame.
     #[arg(long, value_name = "DIR", requires = "measured")]
     pub results_in: Option<PathBuf>,
     /// XMALab's 2D points: the y axis they were exported with, `down` (XMALab's default) or

@@ -2,21 +2,25 @@
 //! XMALab or Autoscoper open, with the exam's known (true) calibration, or the calibration a
 //! software measured.
 //!
-//! Layout of DEST (one folder per run, since every run has its own geometry):
+//! Layout of DEST (one folder per trial: a run, since every run has its own geometry, or a
+//! sequence, whose frames share one; see [`super::trials`]):
 //!
 //! ```text
 //! DEST/README.md
-//! DEST/<run>/calibration/<detector>_MayaCam.txt   MayaCam 2.0, one per detector (both programs)
-//! DEST/<run>/calibration/dlt11.csv                 DLT-11: 11 rows, one column per detector (xmalab)
-//! DEST/<run>/calibration/frame_specification.csv   the box beads, box frame (xmalab)
-//! DEST/<run>/calibration/references.ref            four reference beads (xmalab)
-//! DEST/<run>/images/<exposure>-<detector>/<exposure>-<detector>.0001.tif
-//! DEST/<run>/models/<phantom>_markers.csv          bead names and local coordinates (xmalab)
-//! DEST/<run>/models/<phantom>.obj | .stl           the model mesh, local frame, mm
-//! DEST/<run>/<exposure>.cfg                        Autoscoper trial per exposure with a model (autoscoper)
-//! DEST/<run>/truth/<exposure>_<phantom>.tra        the true pose of each volume (autoscoper)
+//! DEST/<trial>/calibration/<detector>_MayaCam.txt   MayaCam 2.0, one per detector (both programs)
+//! DEST/<trial>/calibration/dlt11.csv                 DLT-11: 11 rows, one column per detector (xmalab)
+//! DEST/<trial>/calibration/frame_specification.csv   the box beads, box frame (xmalab)
+//! DEST/<trial>/calibration/references.ref            four reference beads (xmalab)
+//! DEST/<trial>/images/<exposure>-<detector>/<exposure>-<detector>.<NNNN>.tif   a frame each: 0001 for a run, frame index + 1 in a sequence
+//! DEST/<trial>/models/<phantom>_markers.csv          bead names and local coordinates (xmalab)
+//! DEST/<trial>/models/<phantom>.obj | .stl           the model mesh, local frame, mm
+//! DEST/<trial>/<exposure>.cfg                        Autoscoper trial per exposure with a model (autoscoper)
+//! DEST/<trial>/truth/<exposure>_<phantom>.tra        the true pose of each volume, a line per frame (autoscoper)
 //! DEST/volumes/<phantom>.tif | .stl                each model as Autoscoper's volume and mesh (autoscoper)
 //! ```
+//!
+//! `<trial>` is the run id of a run without frames, the sequence id (`n0-r00`) of a sequence's
+//! frames (`n0-r00-f0000` …).
 
 use std::path::{Path, PathBuf};
 

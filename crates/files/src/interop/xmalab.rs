@@ -21,6 +21,9 @@
 //!   marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major); pixels of the
 //!   exported (flipped) images, 0-based and y down unless the user states XMALab's other
 //!   options ([`super::xmalab_points2d`]). They are triangulated with the exported true cameras.
+//!
+//! A run's trial has one frame, so its export one data row; a sequence's trial ([`super::trials`])
+//! one data row per frame, row k for frame k ([`read_export_frames`]).
 
 use std::path::Path;
 
