@@ -283,7 +283,8 @@ pub struct EvaluateArgs {
     pub measured: Option<String>,
     /// Look for each run's results file in DIR/<run id>/ instead of OUT/runs/<run id>/, e.g.
     /// the folder `rsasim export` wrote, where XMALab's exports or Autoscoper's tracking were
-    /// saved.
+    /// saved. A sequence's XMALab or Autoscoper file is DIR/<sequence id>/<name>, one for the
+    /// sequence's trial: line (data row) k is its k-th frame.
     #[arg(long, value_name = "DIR", requires = "measured")]
     pub results_in: Option<PathBuf>,
     /// XMALab's 2D points: the y axis they were exported with, `down` (XMALab's default) or
@@ -414,10 +415,13 @@ pub struct ExportArgs {
     /// The program to export for.
     #[arg(long)]
     pub to: ExportTarget,
-    /// The new folder to write (one sub-folder per run).
+    /// The new folder to write (one sub-folder per run; one per sequence, its frames as one
+    /// trial).
     #[arg(long, value_name = "DEST")]
     pub dir: PathBuf,
-    /// Export only this run (repeatable), e.g. --run n0-r00. Default: every run.
+    /// Export only this run (repeatable), e.g. --run n0-r00. For a sequence give its id, the
+    /// run id without the frame (n0-r00 for n0-r00-f0000 …): it is exported whole, as one
+    /// trial. Default: every run and sequence.
     #[arg(long = "run", value_name = "RUN_ID")]
     pub runs: Vec<String>,
     /// How dense matter (beads, implants, bone) looks in the exported images: `dark` (the

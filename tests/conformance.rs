@@ -9,7 +9,7 @@ use crate::common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{exported, numbers, read_tiff, rsasim, truths};
+use common::{export_ok, exported, numbers, read_tiff, rsasim, truths};
 use rsasim::output::Truth;
 
 /// Numbers of a space-separated `.cfg` value (`VoxelSize`, `VolumeFlip`, the offset comment).
@@ -175,14 +175,203 @@ fn apply(m: &[f64], p: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| m[4 * i] * p[0] + m[4 * i + 1] * p[1] + m[4 * i + 2] * p[2] + m[4 * i + 3])
 }
 
+/// The trials of an output as its export holds them: a run without a frame alone, in the
+/// folder of its run id; the frames of a sequence (`truth.json`'s `frame`) together, in frame
+/// order, in the folder of its sequence id. Sorted by folder.
+fn trials(out: &Path) -> Vec<(String, Vec<Truth>)> {
+    let mut by_folder: std::collections::BTreeMap<String, Vec<Truth>> = Default::default();
+    for (_, truth) in truths(out) {
+        let folder = truth
+            .run
+            .frame
+            .as_ref()
+            .map_or(truth.run.id.clone(), |f| f.sequence.clone());
+        by_folder.entry(folder).or_default().push(truth);
+    }
+    for frames in by_folder.values_mut() {
+        frames.sort_by_key(|t| t.run.frame.as_ref().map_or(0, |f| f.index));
+    }
+    by_folder.into_iter().collect()
+}
+
+/// The images of a camera folder as both clients take them, in their frame order: the files
+/// whose extension starts with `tif`, hidden ones left out, sorted by name (Autoscoper:
+/// `Video::Video`, `std::sort` of the paths; XMALab: `CameraBox`, `QStringList::sort`, the same
+/// order for ASCII names).
+fn client_frames(folder: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
+        .unwrap()
+        .map(|f| f.unwrap().path())
+        .filter(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().to_string();
+            let ext = name.rsplit_once('.').map_or("", |(_, e)| e);
+            !name.starts_with('.') && ext.starts_with("tif")
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// Whether the exported (16-bit, rows flipped) image `exported` is the run image `original`
+/// of a detector with `i_max`, scaled to 0..65535 (`round(v · 65535 / I_max)`) and possibly
+/// inverted, as the export's README states.
+fn is_export_of(
+    exported: &(u32, u32, Vec<u16>),
+    original: &(u32, u32, Vec<u16>),
+    i_max: u16,
+) -> bool {
+    let (w, h) = (original.0 as usize, original.1 as usize);
+    if (exported.0, exported.1) != (original.0, original.1) {
+        return false;
+    }
+    let scaled = |v: u16| ((u64::from(v) * 65535 + u64::from(i_max) / 2) / u64::from(i_max)) as u16;
+    [false, true].iter().any(|&invert| {
+        (0..h).all(|j| {
+            (0..w).all(|i| {
+                let v = original.2[(h - 1 - j) * w + i];
+                let v = if invert { i_max - v } else { v };
+                exported.2[j * w + i] == scaled(v)
+            })
+        })
+    })
+}
+
+/// Every camera folder `<exposure>-<detector>` of a trial folder `trial` holds as many images as
+/// the trial has `frames`, and the k-th image in the clients' order (`client_frames`) is frame
+/// k's own image. Returns the images checked.
+fn check_frame_order(out: &Path, trial: &Path, frames: &[Truth]) -> usize {
+    let mut checked = 0;
+    for image in &frames[0].images {
+        let stem = format!("{}-{}", image.exposure, image.detector);
+        let files = client_frames(&trial.join("images").join(&stem));
+        assert_eq!(files.len(), frames.len(), "{stem}: one image per frame");
+        for (file, truth) in files.iter().zip(frames) {
+            let det = common::detector(truth, &image.detector);
+            let original = read_tiff(
+                &out.join("runs")
+                    .join(&truth.run.id)
+                    .join(format!("{stem}.tiff")),
+            );
+            assert!(
+                is_export_of(&read_tiff(file), &original, det.i_max()),
+                "{} is not frame {}'s image {stem}",
+                file.display(),
+                truth.run.id
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
+/// The rows of a `.tra` file as Autoscoper's `load_tracking_results` reads them: one a frame,
+/// 16 comma-separated numbers each (the matrix, row by row).
+fn tra_rows(file: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(file)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let m = numbers(l);
+            assert_eq!(m.len(), 16, "{}", file.display());
+            assert_eq!(&m[12..], &[0.0, 0.0, 0.0, 1.0]);
+            m
+        })
+        .collect()
+}
+
+/// The worst distance (px) over the beads of `phantom` in the images of `exposure` of `truth`
+/// between their truth pixels and their local positions taken to the volume frame (minus
+/// `offset`), through the `.tra` row `m` and the `cameras` (in the detectors' order).
+fn worst_bead_px(
+    truth: &Truth,
+    exposure: &str,
+    phantom: &str,
+    offset: &[f64],
+    m: &[f64],
+    cameras: &[MayaCam],
+) -> f64 {
+    let mut worst: f64 = 0.0;
+    let ph = truth.run.phantoms.iter().find(|p| p.id == phantom).unwrap();
+    for image in truth.images.iter().filter(|im| im.exposure == exposure) {
+        let d = truth
+            .run
+            .detectors
+            .iter()
+            .position(|x| x.id == image.detector)
+            .unwrap();
+        for mk in image
+            .markers
+            .iter()
+            .filter(|m| m.phantom == phantom && m.inside)
+        {
+            let local = ph
+                .pose()
+                .to_local(glam::DVec3::from_array(bead_world(truth, phantom, &mk.id)));
+            let vol_p = [
+                local.x - offset[0],
+                local.y - offset[1],
+                local.z - offset[2],
+            ];
+            let got = cameras[d].project(apply(m, vol_p));
+            let want = opencv(mk.pixel, cameras[d].size[1]);
+            worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
+        }
+    }
+    worst
+}
+
+/// The voxels of a volume where Autoscoper puts them in its volume frame, voxel (c, r, p) at
+/// (sx·(c′+½), sy·(H−½−r′), −sz·(p′+½)), c′ = fx ? W−1−c : c, … (`VolumeDescription::
+/// VolumeDescription`, `RayCaster::setInvModelView`): the count of inside voxels and their
+/// centroid.
+fn voxel_centroid(volume: &Path, s: &[f64], flip: &[f64]) -> (usize, [f64; 3]) {
+    let (w, h, pages) = read_pages(volume);
+    let dpages = pages.len();
+    let mut sum = [0.0; 3];
+    let mut count = 0usize;
+    for (p, page) in pages.iter().enumerate() {
+        for r in 0..h as usize {
+            for c in 0..w as usize {
+                if page[r * w as usize + c] == 0 {
+                    continue;
+                }
+                let cf = if flip[0] != 0.0 {
+                    w as usize - 1 - c
+                } else {
+                    c
+                } as f64;
+                let rf = if flip[1] != 0.0 {
+                    h as usize - 1 - r
+                } else {
+                    r
+                } as f64;
+                let pf = if flip[2] != 0.0 { dpages - 1 - p } else { p } as f64;
+                let v = [
+                    s[0] * (cf + 0.5),
+                    s[1] * (f64::from(h) - 0.5 - rf),
+                    -s[2] * (pf + 0.5),
+                ];
+                for k in 0..3 {
+                    sum[k] += v[k];
+                }
+                count += 1;
+            }
+        }
+    }
+    (count, sum.map(|x| x / count.max(1) as f64))
+}
+
 /// Every Autoscoper rule on an export of `out` in `dest`: each trial against `Trial::validate`,
-/// each volume placed by Autoscoper's formula and the truth `.tra`, beads through the `.tra` and
-/// the cameras, the volume's tags by libtiff. Returns the trials checked.
+/// its camera folders in frame order, each volume placed by Autoscoper's formula and the truth
+/// `.tra` (one line a frame: line k with frame k's truth), beads through the `.tra` and the
+/// cameras, the volume's tags by libtiff. Returns the trials checked.
 fn check_autoscoper(out: &Path, dest: &Path) -> usize {
-    let mut trials = 0;
+    let mut trials_checked = 0;
     let mut worst_px: f64 = 0.0;
-    for (_, truth) in truths(&out) {
-        let run = dest.join(&truth.run.id);
+    for (folder, frames) in trials(out) {
+        let run = dest.join(&folder);
+        let truth = &frames[0];
+        check_frame_order(out, &run, &frames);
         for exposure in &truth.run.exposures {
             let cfg_path = run.join(format!("{}.cfg", exposure.id));
             if !cfg_path.exists() {
@@ -192,13 +381,12 @@ fn check_autoscoper(out: &Path, dest: &Path) -> usize {
                         .phantoms
                         .iter()
                         .any(|p| dest.join(format!("volumes/{p}.tif")).exists()),
-                    "{}: no trial for exposure {}",
-                    truth.run.id,
+                    "{folder}: no trial for exposure {}",
                     exposure.id
                 );
                 continue;
             }
-            trials += 1;
+            trials_checked += 1;
             let text = std::fs::read_to_string(&cfg_path).unwrap();
             let e = cfg_entries(&text);
             // Trial::validate: ≥ 1 camera, as many CameraRootDir, ≥ 1 VolumeFile, as many
@@ -218,17 +406,10 @@ fn check_autoscoper(out: &Path, dest: &Path) -> usize {
                 assert!(!p.starts_with('/') && !p.contains('\\'), "{p}");
                 assert!(run.join(p).exists(), "{p} of {}", cfg_path.display());
             }
-            // Camera folders: files whose extension starts with "tif", sorted by name.
+            // Camera folders (Trial::loadVideos): the trial's frames are the most images of
+            // any camera folder, each a frame of this trial.
             for d in &dirs {
-                let tifs = std::fs::read_dir(run.join(d))
-                    .unwrap()
-                    .filter(|f| {
-                        let p = f.as_ref().unwrap().path();
-                        p.extension()
-                            .is_some_and(|x| x.to_string_lossy().starts_with("tif"))
-                    })
-                    .count();
-                assert!(tifs >= 1, "{d}");
+                assert_eq!(client_frames(&run.join(d)).len(), frames.len(), "{d}");
             }
             // Cameras read as Autoscoper reads them, in the cfg's order: the detectors'.
             let cameras: Vec<MayaCam> = cams.iter().map(|c| mayacam(&run.join(c), false)).collect();
@@ -247,110 +428,54 @@ fn check_autoscoper(out: &Path, dest: &Path) -> usize {
                     .find_map(|l| l.strip_prefix(&format!("#   {phantom}: offset ")))
                     .map(words)
                     .unwrap();
-                let tra = std::fs::read_to_string(
-                    run.join(format!("truth/{}_{phantom}.tra", exposure.id)),
-                )
-                .unwrap();
-                let lines: Vec<&str> = tra.lines().collect();
-                assert_eq!(lines.len(), 1, "one frame");
-                let m = numbers(lines[0]);
-                assert_eq!(m.len(), 16);
-                assert_eq!(&m[12..], &[0.0, 0.0, 0.0, 1.0]);
-                // Beads of the phantom: local (truth pose) → volume frame (minus the offset) →
-                // the .tra → every camera: on the truth pixel.
-                let ph = truth.run.phantoms.iter().find(|p| p.id == phantom).unwrap();
-                for image in truth.images.iter().filter(|im| im.exposure == exposure.id) {
-                    let d = truth
-                        .run
-                        .detectors
-                        .iter()
-                        .position(|x| x.id == image.detector)
-                        .unwrap();
-                    for mk in image
-                        .markers
-                        .iter()
-                        .filter(|m| m.phantom == phantom && m.inside)
-                    {
-                        let local = ph.pose().to_local(glam::DVec3::from_array(bead_world(
-                            &truth, &phantom, &mk.id,
-                        )));
-                        let vol_p = [
-                            local.x - offset[0],
-                            local.y - offset[1],
-                            local.z - offset[2],
-                        ];
-                        let world = apply(&m, vol_p);
-                        let got = cameras[d].project(world);
-                        let want = opencv(mk.pixel, cameras[d].size[1]);
-                        worst_px = worst_px.max((got[0] - want[0]).hypot(got[1] - want[1]));
-                    }
-                }
-                // The volume where Autoscoper puts it: voxel (c, r, p) at
-                // (sx·(c′+½), sy·(H−½−r′), −sz·(p′+½)), c′ = fx ? W−1−c : c, …
-                // (VolumeDescription::VolumeDescription, RayCaster::setInvModelView), then the
-                // .tra; the centroid of the inside voxels against the posed mesh's solid centroid.
-                let (w, h, pages) = read_pages(&run.join(vol));
-                let dpages = pages.len();
-                let mut sum = [0.0; 3];
-                let mut count = 0usize;
-                for (p, page) in pages.iter().enumerate() {
-                    for r in 0..h as usize {
-                        for c in 0..w as usize {
-                            if page[r * w as usize + c] == 0 {
-                                continue;
-                            }
-                            let cf = if flip[0] != 0.0 {
-                                w as usize - 1 - c
-                            } else {
-                                c
-                            } as f64;
-                            let rf = if flip[1] != 0.0 {
-                                h as usize - 1 - r
-                            } else {
-                                r
-                            } as f64;
-                            let pf = if flip[2] != 0.0 { dpages - 1 - p } else { p } as f64;
-                            let v = [
-                                s[0] * (cf + 0.5),
-                                s[1] * (f64::from(h) - 0.5 - rf),
-                                -s[2] * (pf + 0.5),
-                            ];
-                            let x = apply(&m, v);
-                            for k in 0..3 {
-                                sum[k] += x[k];
-                            }
-                            count += 1;
-                        }
-                    }
-                }
+                // One line a frame (AutoscoperMainWindow::load_tracking_results reads line k
+                // as frame k).
+                let rows = tra_rows(&run.join(format!("truth/{}_{phantom}.tra", exposure.id)));
+                assert_eq!(rows.len(), frames.len(), "one line a frame");
+                // The volume and the mesh Autoscoper pairs with it, in the volume frame.
+                let (count, c_vol) = voxel_centroid(&run.join(vol), &s, &flip);
                 assert!(count > 0, "an empty volume makes Autoscoper exit");
-                let voxel_centroid = sum.map(|x| x / count as f64);
+                let (mv, mt) = read_stl(&run.join(meshes[i]));
+                let (_, c_mesh_vol) = solid_centroid(&mv, &mt);
                 // The model in its own frame, as the export also writes it (models/).
                 let (verts, tris) = read_stl(&run.join(format!("models/{phantom}.stl")));
                 let (volume_mm3, c_local) = solid_centroid(&verts, &tris);
-                let c_world = ph.pose().to_world(glam::DVec3::from_array(c_local));
-                let off = (glam::DVec3::from_array(voxel_centroid) - c_world).length();
-                eprintln!(
-                    "{} {phantom}: {count} voxels ({:.0} mm³ against the mesh's {volume_mm3:.0}), centroid {off:.4} mm from the posed mesh's",
-                    truth.run.id,
-                    count as f64 * s[0] * s[1] * s[2]
-                );
-                // Voxelization moves the centroid by a discretization error (measured 0.074 mm at
-                // 0.5 mm voxels, 0.014 mm at 0.25 mm, 0.14 mm at 1 mm); a frame off by half a
-                // voxel along any axis would move it by 0.25 mm.
-                assert!(off < 0.25 * s[0], "voxel centroid {off} mm from the mesh's");
                 let rel = (count as f64 * s[0] * s[1] * s[2] - volume_mm3).abs() / volume_mm3;
                 assert!(rel < 0.03, "voxel volume off by {rel}");
-                // The mesh Autoscoper pairs with the volume, moved by the same .tra: the posed
-                // mesh (f32 vertices: within 1e-3 mm).
-                let (mv, mt) = read_stl(&run.join(meshes[i]));
-                let (_, c_vol) = solid_centroid(&mv, &mt);
-                let moved = glam::DVec3::from_array(apply(&m, c_vol));
-                assert!((moved - c_world).length() < 1e-3, "{moved} {c_world}");
+                for (m, frame) in rows.iter().zip(&frames) {
+                    // Beads of the phantom: local (truth pose) → volume frame (minus the
+                    // offset) → the frame's .tra line → every camera: on the truth pixel.
+                    worst_px = worst_px.max(worst_bead_px(
+                        frame,
+                        &exposure.id,
+                        &phantom,
+                        &offset,
+                        m,
+                        &cameras,
+                    ));
+                    // The voxels' centroid moved by the line against the posed mesh's.
+                    let ph = frame.run.phantoms.iter().find(|p| p.id == phantom).unwrap();
+                    let c_world = ph.pose().to_world(glam::DVec3::from_array(c_local));
+                    let voxel_world = glam::DVec3::from_array(apply(m, c_vol));
+                    let off = (voxel_world - c_world).length();
+                    eprintln!(
+                        "{} {phantom}: {count} voxels ({:.0} mm³ against the mesh's {volume_mm3:.0}), centroid {off:.4} mm from the posed mesh's",
+                        frame.run.id,
+                        count as f64 * s[0] * s[1] * s[2]
+                    );
+                    // Voxelization moves the centroid by a discretization error (measured
+                    // 0.074 mm at 0.5 mm voxels, 0.014 mm at 0.25 mm, 0.14 mm at 1 mm); a frame
+                    // off by half a voxel along any axis would move it by 0.25 mm.
+                    assert!(off < 0.25 * s[0], "voxel centroid {off} mm from the mesh's");
+                    // The mesh moved by the same line: the posed mesh (f32 vertices: within
+                    // 1e-3 mm).
+                    let moved = glam::DVec3::from_array(apply(m, c_mesh_vol));
+                    assert!((moved - c_world).length() < 1e-3, "{moved} {c_world}");
+                }
             }
         }
     }
-    eprintln!("{trials} trials; worst bead reprojection through the .tra {worst_px:e} px");
+    eprintln!("{trials_checked} trials; worst bead reprojection through the .tra {worst_px:e} px");
     assert!(worst_px <= 1e-6, "{worst_px} px");
     // libtiff (Autoscoper's reader) on every volume: one sample, 16 bits, unsigned, MinIsBlack,
     // contiguous, a compression libtiff decodes (Volume::Volume, tiffImageRead).
@@ -361,7 +486,7 @@ fn check_autoscoper(out: &Path, dest: &Path) -> usize {
         .collect();
     assert!(!volumes.is_empty());
     if !have_tiffinfo() {
-        return trials;
+        return trials_checked;
     }
     for volume in volumes {
         let o = Command::new("tiffinfo").arg(&volume).output().unwrap();
@@ -380,7 +505,7 @@ fn check_autoscoper(out: &Path, dest: &Path) -> usize {
             assert_eq!(info.matches(needle).count(), n, "{needle}\n{info}");
         }
     }
-    trials
+    trials_checked
 }
 
 #[test]
@@ -389,10 +514,10 @@ fn autoscoper_trials_pass_trial_validate_and_the_truth_puts_volumes_and_beads_in
     assert!(check_autoscoper(&out, &dest) >= 4);
 }
 
-/// The box beads in the first exported (flipped, 16-bit) image of an exposure holding the box:
-/// the mean value at the centre pixels of those on the image and not over an implant, and the
-/// image's median.
-fn bead_against_background(dest: &Path, truth: &Truth) -> (f64, u16) {
+/// The box beads in the first frame (by the clients' order) of the exported (flipped, 16-bit)
+/// images of an exposure holding the box, against the trial's first `truth`: the mean value at
+/// the centre pixels of those on the image and not over an implant, and the image's median.
+fn bead_against_background(trial: &Path, truth: &Truth) -> (f64, u16) {
     let cal = truth
         .run
         .phantoms
@@ -411,11 +536,7 @@ fn bead_against_background(dest: &Path, truth: &Truth) -> (f64, u16) {
         })
         .unwrap();
     let stem = format!("{}-{}", image.exposure, image.detector);
-    let (w, h, px) = read_tiff(
-        &dest
-            .join(&truth.run.id)
-            .join(format!("images/{stem}/{stem}.0001.tif")),
-    );
+    let (w, h, px) = read_tiff(&client_frames(&trial.join(format!("images/{stem}")))[0]);
     // Row v of rsasim's image is row H − 1 − v of the export.
     let at: Vec<f64> = image
         .markers
@@ -435,31 +556,36 @@ fn bead_against_background(dest: &Path, truth: &Truth) -> (f64, u16) {
     )
 }
 
-/// Every XMALab rule on an export of `out` in `dest` (dense matter `bright` or dark): the
-/// calibration object where written (frame specification header and rows, references and their
-/// rule, through the cameras as XMALab reads them), its absence named in the export's README
-/// otherwise, and the beads' shade. Returns the runs with a calibration object.
+/// Every XMALab rule on an export of `out` in `dest` (dense matter `bright` or dark): each
+/// trial's camera folders in frame order, the calibration object where written (frame
+/// specification header and rows, references and their rule, through the cameras as XMALab
+/// reads them), its absence named in the export's README otherwise, and the beads' shade.
+/// Returns the trials with a calibration object.
 fn check_xmalab(out: &Path, dest: &Path, bright: bool) -> usize {
     let readme = std::fs::read_to_string(dest.join("README.md")).unwrap();
     let mut with_object = 0;
-    for (_, truth) in truths(out) {
+    for (folder, frames) in trials(out) {
+        let trial = dest.join(&folder);
+        let truth = &frames[0];
+        check_frame_order(out, &trial, &frames);
         // Beads dark on the exported images by default, bright when asked.
-        let (bead, background) = bead_against_background(dest, &truth);
+        let (bead, background) = bead_against_background(&trial, truth);
         assert_eq!(
             bead > f64::from(background),
             bright,
-            "{}: beads {bead}, background {background}",
-            truth.run.id
+            "{folder}: beads {bead}, background {background}"
         );
-        let cal = dest.join(&truth.run.id).join("calibration");
+        let cal = trial.join("calibration");
         if !cal.join("references.ref").exists() {
             // Then no calibration object at all, and the README says why.
             assert!(!cal.join("frame_specification.csv").exists());
+            let what = if truth.run.frame.is_some() {
+                "sequence"
+            } else {
+                "run"
+            };
             assert!(
-                readme.contains(&format!(
-                    "  - run {}: no four reference beads",
-                    truth.run.id
-                )),
+                readme.contains(&format!("  - {what} {folder}: no four reference beads")),
                 "{readme}"
             );
             continue;
@@ -598,24 +724,28 @@ fn a_box_with_no_four_references_is_named_and_required_makes_it_an_error() {
     assert!(dest.join("n0-r00/calibration/det1_MayaCam.txt").exists());
 }
 
-/// Every bead image of every run of `out` through the cameras of the export `dest` as XMALab
-/// reads them (32-bit floats): (bead images, worst distance to the truth pixel in px).
+/// Every bead image of every frame of `out` through the cameras of its trial in the export
+/// `dest` as XMALab reads them (32-bit floats): (bead images, worst distance to the truth pixel
+/// in px).
 fn through_float32_cameras(out: &Path, dest: &Path) -> (usize, f64) {
     let mut worst: f64 = 0.0;
     let mut n = 0;
-    for (_, truth) in truths(out) {
-        for image in &truth.images {
-            let cam = mayacam(
-                &dest
-                    .join(&truth.run.id)
-                    .join(format!("calibration/{}_MayaCam.txt", image.detector)),
-                true,
-            );
-            for mk in image.markers.iter().filter(|m| m.inside) {
-                let got = cam.project(bead_world(&truth, &mk.phantom, &mk.id));
-                let want = opencv(mk.pixel, cam.size[1]);
-                worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
-                n += 1;
+    for (folder, frames) in trials(out) {
+        // One calibration a trial: every frame's beads through it.
+        for truth in &frames {
+            for image in &truth.images {
+                let cam = mayacam(
+                    &dest
+                        .join(&folder)
+                        .join(format!("calibration/{}_MayaCam.txt", image.detector)),
+                    true,
+                );
+                for mk in image.markers.iter().filter(|m| m.inside) {
+                    let got = cam.project(bead_world(truth, &mk.phantom, &mk.id));
+                    let want = opencv(mk.pixel, cam.size[1]);
+                    worst = worst.max((got[0] - want[0]).hypot(got[1] - want[1]));
+                    n += 1;
+                }
             }
         }
     }
@@ -658,18 +788,7 @@ fn every_shipped_scenario_exports_as_the_clients_read() {
             .path();
         let export = |to: &str| {
             let dest = tmp.path().join(to);
-            let o = rsasim(
-                &[
-                    "export",
-                    shard.to_str().unwrap(),
-                    "--to",
-                    to,
-                    "--dir",
-                    dest.to_str().unwrap(),
-                ],
-                &[],
-            );
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            export_ok(&shard, to, &dest, &[]);
             dest
         };
         let xma = export("xmalab");
@@ -690,6 +809,93 @@ fn every_shipped_scenario_exports_as_the_clients_read() {
         let bound = if square_1440 { 1e-4 } else { 1e-3 };
         assert!(worst <= bound, "{worst} px (bound {bound})");
     }
+}
+
+/// The folders of an export besides README.md and volumes/: its trials.
+fn trial_folders(dest: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dest)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "README.md" && n != "volumes")
+        .collect();
+    names.sort();
+    names
+}
+
+/// A dynamic exam (tests/scenarios/sequence.toml: one sequence of 5 frames, the femur flexing)
+/// exported for both programs passes the same client checks as a static export: one trial,
+/// named by the sequence, whose camera folders hold its 5 frames in the clients' order, whose
+/// one calibration puts every frame's beads on their truth pixels, and whose truth `.tra` has a
+/// line a frame, each putting the volume and the beads on that frame's truth pixels.
+#[test]
+fn a_sequence_exports_as_one_trial_the_clients_read_frame_by_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    common::run_scenario("tests/scenarios/sequence.toml", &out, &[]);
+    assert_eq!(truths(&out).len(), 5);
+    let xma = tmp.path().join("xmalab");
+    export_ok(&out, "xmalab", &xma, &[]);
+    assert_eq!(trial_folders(&xma), ["n0-r00"]);
+    // The box seen square-on by both views, as the paper's: no calibration object, and the
+    // README names the sequence.
+    assert_eq!(check_xmalab(&out, &xma, false), 0);
+    let (n, worst) = through_float32_cameras(&out, &xma);
+    assert!(n >= 5 * 6 * 2, "{n} bead images");
+    assert!(worst <= 1e-4, "{worst} px");
+    let asc = tmp.path().join("autoscoper");
+    export_ok(&out, "autoscoper", &asc, &[]);
+    assert_eq!(trial_folders(&asc), ["n0-r00"]);
+    assert_eq!(check_autoscoper(&out, &asc), 1);
+}
+
+/// A shard holding frames 0, 2 and 4 of the sequence exports those as the sequence's trial,
+/// numbered by frame (`.0001`, `.0003`, `.0005`: name order is still frame order), its `.tra`
+/// a line each; the note and the README say which frames are missing. The client checks pass
+/// with the trial's k-th frame the shard's k-th.
+#[test]
+fn a_shard_of_a_sequence_exports_the_frames_it_holds_numbered_by_frame() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let o = rsasim(
+        &[
+            "tests/scenarios/sequence.toml",
+            "--shard",
+            "0/2",
+            "--out",
+            out.to_str().unwrap(),
+            common::ALLOW_MODELS[0],
+            common::ALLOW_MODELS[1],
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let shard = out.join("shard-0-of-2");
+    let ids: Vec<String> = truths(&shard).into_iter().map(|t| t.1.run.id).collect();
+    assert_eq!(ids, ["n0-r00-f0000", "n0-r00-f0002", "n0-r00-f0004"]);
+    let asc = tmp.path().join("autoscoper");
+    let note = export_ok(&shard, "autoscoper", &asc, &[]);
+    assert!(
+        note.contains("sequence n0-r00 has 5 frames, of which this output holds 3"),
+        "{note}"
+    );
+    let readme = std::fs::read_to_string(asc.join("README.md")).unwrap();
+    assert!(readme.contains("holds only some frames"), "{readme}");
+    let names: Vec<String> = client_frames(&asc.join("n0-r00/images/model-det1"))
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "model-det1.0001.tif",
+            "model-det1.0003.tif",
+            "model-det1.0005.tif"
+        ]
+    );
+    assert_eq!(check_autoscoper(&shard, &asc), 1);
+    let xma = tmp.path().join("xmalab");
+    export_ok(&shard, "xmalab", &xma, &[]);
+    check_xmalab(&shard, &xma, false);
 }
 
 #[test]

@@ -176,12 +176,26 @@ const OFFSET: [f64; 3] = [0.1, -0.2, 0.05];
 /// A rigid-body transformation export of XMALab, exact layout, for body `femur` at the truth
 /// pose moved by [`OFFSET`]: `Frame` column, 16 columns, the 3×3 block = world → body rotation.
 fn rigid_body_csv(truth: &Truth) -> String {
-    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+    format!(
+        "Frame,{}\n1,{}\n",
+        rigid_body_header(),
+        rigid_body_values(truth, OFFSET)
+    )
+}
+
+/// The 16 column names of body `femur` in XMALab's rigid-body export.
+fn rigid_body_header() -> String {
     let names = [
         "R11", "R12", "R13", "01", "R21", "R22", "R23", "02", "R31", "R32", "R33", "03", "TX",
         "TY", "TZ", "1",
     ];
     let header: Vec<String> = names.iter().map(|n| format!("femur_{n}")).collect();
+    header.join(",")
+}
+
+/// The 16 values of body `femur` at its truth pose moved by `offset` (mm, box frame).
+fn rigid_body_values(truth: &Truth, offset: [f64; 3]) -> String {
+    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
     // World → body rows are the body axes, i.e. the columns of rsasim's rotation.
     let axes = [p.rotation.x_axis, p.rotation.y_axis, p.rotation.z_axis];
     let pos = p.position_mm.to_array();
@@ -189,31 +203,46 @@ fn rigid_body_csv(truth: &Truth) -> String {
     for a in axes {
         v.extend([num(a.x), num(a.y), num(a.z), "0".into()]);
     }
-    v.extend((0..3).map(|i| num(pos[i] + OFFSET[i])));
+    v.extend((0..3).map(|i| num(pos[i] + offset[i])));
     v.push("1".into());
-    format!("Frame,{}\n1,{}\n", header.join(","), v.join(","))
+    v.join(",")
 }
 
 /// A 3-D point export of XMALab for every bead of `femur`, moved by [`OFFSET`].
 fn points_csv(truth: &Truth) -> String {
+    format!(
+        "{}\n{}\n",
+        points_header(truth),
+        points_values(truth, OFFSET)
+    )
+}
+
+/// The column names of every bead of `femur` in XMALab's 3-D point export.
+fn points_header(truth: &Truth) -> String {
     let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
     let header: Vec<String> = p
         .markers
         .iter()
         .map(|m| format!("{0}_X,{0}_Y,{0}_Z", m.id))
         .collect();
+    header.join(",")
+}
+
+/// Every bead of `femur` at its truth position moved by `offset` (mm, box frame).
+fn points_values(truth: &Truth, offset: [f64; 3]) -> String {
+    let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
     let values: Vec<String> = p
         .markers
         .iter()
         .map(|m| {
             let x = m.position_mm.to_array();
             (0..3)
-                .map(|i| num(x[i] + OFFSET[i]))
+                .map(|i| num(x[i] + offset[i]))
                 .collect::<Vec<_>>()
                 .join(",")
         })
         .collect();
-    format!("{}\n{}\n", header.join(","), values.join(","))
+    values.join(",")
 }
 
 /// The evaluate test scenario (16² px, 2 levels × 20 runs, a femur with 6 beads) and a folder
@@ -738,4 +767,262 @@ fn autoscoper_tracking_results_give_the_residuals_put_into_them() {
     }
     let o = evaluate_cli(&out, &dest, "model_femur.tra", &["--format", "csv"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// tests/scenarios/sequence.toml (one sequence of 5 frames, the femur flexing) and its export
+/// for `to`, with the truths of its frames in frame order.
+fn sequence_exported(to: &str) -> (tempfile::TempDir, PathBuf, PathBuf, Vec<Truth>) {
+    let (tmp, out, dest) = common::exported("tests/scenarios/sequence.toml", to, &[]);
+    let frames: Vec<Truth> = truths(&out).into_iter().map(|t| t.1).collect();
+    let indices: Vec<u32> = frames
+        .iter()
+        .map(|t| t.run.frame.as_ref().unwrap().index)
+        .collect();
+    assert_eq!(indices, [0, 1, 2, 3, 4]);
+    (tmp, out, dest, frames)
+}
+
+/// The offset put into frame k of a hand-made result of a sequence, mm: (k + 1) · 0.1 along x,
+/// so that a line or row read as another frame's shows.
+fn frame_offset(k: usize) -> [f64; 3] {
+    [0.1 * (k + 1) as f64, 0.0, 0.0]
+}
+
+/// Reads the results `name` of the sequence from `dest/n0-r00/` as `evaluate --results-in dest`
+/// does, and asserts that in frame k the femur is at its truth pose moved by `offset(k)`.
+fn assert_frame_offsets(
+    out: &Path,
+    dest: &Path,
+    name: &str,
+    frames: &[Truth],
+    offset: &dyn Fn(usize) -> [f64; 3],
+) {
+    let runs = rsasim::evaluate::input::load_truths(out).unwrap();
+    let measured =
+        rsasim::evaluate::input::load_per_run(name, Some(dest), &runs, out, Default::default())
+            .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    assert_eq!(measured.len(), frames.len(), "{name}");
+    for (k, truth) in frames.iter().enumerate() {
+        let (position, rotation) = measured[&truth.run.id].phantoms["femur"];
+        let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+        let moved = p.position_mm + glam::DVec3::from_array(offset(k));
+        assert!(
+            (position - moved).length() < 1e-9,
+            "{name}, frame {k}: {position} instead of {moved}"
+        );
+        let turn = (rotation.unwrap() - p.rotation).to_cols_array();
+        assert!(turn.iter().all(|x| x.abs() < 1e-9), "{name}, frame {k}");
+    }
+}
+
+/// Asserts the femur's trueness is zero in every position and angle over the sequence's 5
+/// frames.
+fn assert_zero_trueness(report: &Report, name: &str) {
+    assert_eq!(report.runs_scored, 5, "{name}");
+    let femur = table(report, "phantom-femur");
+    for (group, columns) in [
+        ("position", ["x", "y", "z"]),
+        ("orientation", ["α", "β", "γ"]),
+    ] {
+        for column in columns {
+            let t = trueness(femur, 0, group, column);
+            assert!(t.abs() < 1e-9, "{name} {column}: {t}");
+        }
+    }
+}
+
+/// Autoscoper's tracking of a sequence's trial, one line a frame (the exported truth saved as
+/// Autoscoper names the tracking of trial `model.cfg`): zero error in every frame; line k is
+/// frame k's pose; a line too few or too many is refused naming the file, the line and the
+/// sequence's frames, and nothing is written.
+#[test]
+fn a_sequences_tracking_is_read_line_by_line_frame_by_frame() {
+    let (_tmp, out, dest, frames) = sequence_exported("autoscoper");
+    let trial = dest.join("n0-r00");
+    let truth_tra = std::fs::read_to_string(trial.join("truth/model_femur.tra")).unwrap();
+    assert_eq!(truth_tra.lines().count(), 5);
+    std::fs::write(trial.join("model_femur.tra"), &truth_tra).unwrap();
+    assert_frame_offsets(&out, &dest, "model_femur.tra", &frames, &|_| [0.0; 3]);
+    let report = evaluate_xmalab(&out, &dest, "model_femur.tra", Default::default());
+    assert_zero_trueness(&report, "model_femur.tra");
+    // Line k moved by frame k's offset in the world: read as frame k's pose.
+    let lines: Vec<Vec<f64>> = truth_tra.lines().map(tra_values).collect();
+    let moved: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            let mut m = m.clone();
+            for (i, o) in frame_offset(k).iter().enumerate() {
+                m[4 * i + 3] += o;
+            }
+            m.iter().map(|x| num(*x)).collect::<Vec<_>>().join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(trial.join("model.tra"), moved.concat()).unwrap();
+    assert_frame_offsets(&out, &dest, "model.tra", &frames, &frame_offset);
+    // A line too few, a line too many.
+    for (kept, line) in [(4, 5), (6, 6)] {
+        let text: String = moved.iter().cycle().take(kept).cloned().collect();
+        std::fs::write(trial.join("model_femur.tra"), text).unwrap();
+        let e = evaluate_refused(&out, &dest, "model_femur.tra", &[]);
+        assert!(
+            e.contains(&format!("n0-r00/model_femur.tra:{line}:1"))
+                && e.contains(&format!(
+                    "the file holds {kept} line(s), but sequence n0-r00 has 5 frame(s)"
+                )),
+            "{e}"
+        );
+    }
+    assert!(
+        !std::fs::read_dir(&out).unwrap().any(|e| e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .starts_with("report-")),
+        "a refused evaluation writes no report"
+    );
+}
+
+/// XMALab's exports of a sequence's trial: rigid-body transformations with the `Frame` column
+/// (rows given last frame first, each read as the frame it names) and 3-D points without it
+/// (row k is frame k); the truth scores zero in every frame; a row too few, a `Frame` beyond
+/// the trial and a frame twice are refused naming the file, the line and the column.
+#[test]
+fn a_sequences_xmalab_exports_are_read_row_by_row_honouring_the_frame_column() {
+    let (_tmp, out, dest, frames) = sequence_exported("xmalab");
+    let trial = dest.join("n0-r00");
+    let rigid = |offset: &dyn Fn(usize) -> [f64; 3], order: &[usize]| {
+        let rows: Vec<String> = order
+            .iter()
+            .map(|&k| format!("{},{}\n", k + 1, rigid_body_values(&frames[k], offset(k))))
+            .collect();
+        format!("Frame,{}\n{}", rigid_body_header(), rows.concat())
+    };
+    std::fs::write(
+        trial.join("xmalab-femur.csv"),
+        rigid(&|_| [0.0; 3], &[0, 1, 2, 3, 4]),
+    )
+    .unwrap();
+    let report = evaluate_xmalab(&out, &dest, "xmalab-femur.csv", Default::default());
+    assert_zero_trueness(&report, "xmalab-femur.csv");
+    std::fs::write(
+        trial.join("xmalab-femur.csv"),
+        rigid(&frame_offset, &[4, 3, 2, 1, 0]),
+    )
+    .unwrap();
+    assert_frame_offsets(&out, &dest, "xmalab-femur.csv", &frames, &frame_offset);
+    let points: Vec<String> = (0..5)
+        .map(|k| points_values(&frames[k], frame_offset(k)) + "\n")
+        .collect();
+    std::fs::write(
+        trial.join("xmalab-points.csv"),
+        format!("{}\n{}", points_header(&frames[0]), points.concat()),
+    )
+    .unwrap();
+    assert_frame_offsets(&out, &dest, "xmalab-points.csv", &frames, &frame_offset);
+    // Refused: a row too few (the line after the last), a frame beyond the trial (line 3: the
+    // second row), a frame twice.
+    let file = "n0-r00/bad.csv";
+    for (order, text) in [
+        (
+            vec![0, 1, 2, 3],
+            format!("{file}:6:1: the file holds 4 data row(s), but sequence n0-r00 has 5 frame(s)"),
+        ),
+        (
+            vec![0, 5, 1, 2, 3],
+            format!("{file}:3:1: `Frame` is `6`, not a frame of the trial (1 to 5)"),
+        ),
+        (
+            vec![0, 1, 1, 2, 3],
+            format!("{file}:4:1: frame 2 appears twice"),
+        ),
+    ] {
+        // Frame 6 has no truth: its values are frame 0's.
+        let rows: Vec<String> = order
+            .iter()
+            .map(|&k| {
+                format!(
+                    "{},{}\n",
+                    k + 1,
+                    rigid_body_values(&frames[k.min(4)], [0.0; 3])
+                )
+            })
+            .collect();
+        std::fs::write(
+            trial.join("bad.csv"),
+            format!("Frame,{}\n{}", rigid_body_header(), rows.concat()),
+        )
+        .unwrap();
+        let e = evaluate_refused(&out, &dest, "bad.csv", &[]);
+        assert!(e.contains(&text), "{e}");
+    }
+}
+
+/// `export --run` takes a sequence's id and refuses a frame's; a frame whose cameras (or whose
+/// place in its sequence) were edited is refused naming its truth.json, with nothing written.
+#[test]
+fn export_takes_sequence_ids_and_refuses_frames_that_break_the_sequence() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    run_scenario("tests/scenarios/sequence.toml", &out, &[]);
+    let export = |dest: &Path, run: &str| common::export(&out, "xmalab", dest, &["--run", run]);
+    let dest = tmp.path().join("x");
+    let refused = |run: &str| {
+        let o = export(&dest, run);
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(!dest.exists(), "nothing written: {e}");
+        e
+    };
+    let e = refused("n0-r00-f0001");
+    assert!(
+        e.contains("n0-r00-f0001/truth.json")
+            && e.contains("frame 1 of sequence n0-r00")
+            && e.contains("--run n0-r00"),
+        "{e}"
+    );
+    let e = refused("n0-r01");
+    assert!(
+        e.contains("no run `n0-r01`") && e.contains("sequence"),
+        "{e}"
+    );
+    let o = export(&dest, "n0-r00");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read_dir(dest.join("n0-r00/images/model-det1"))
+            .unwrap()
+            .count(),
+        5
+    );
+    std::fs::remove_dir_all(&dest).unwrap();
+    // Frame 3 with detector det1 moved by 1 mm, its manifest entry resealed.
+    let rel = "runs/n0-r00-f0003/truth.json";
+    let edit = |change: &dyn Fn(&mut serde_json::Value)| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join(rel)).unwrap()).unwrap();
+        change(&mut v);
+        std::fs::write(out.join(rel), serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+        common::rehash(&out, &[rel]);
+    };
+    edit(&|v| {
+        let x = &mut v["detectors"][0]["position_mm"][0];
+        *x = serde_json::json!(x.as_f64().unwrap() + 1.0);
+    });
+    let e = refused("n0-r00");
+    assert!(
+        e.contains(rel)
+            && e.contains("frame n0-r00-f0003 of sequence n0-r00: the camera of detector `det1` differs from frame n0-r00-f0000's"),
+        "{e}"
+    );
+    edit(&|v| {
+        let x = &mut v["detectors"][0]["position_mm"][0];
+        *x = serde_json::json!(x.as_f64().unwrap() - 1.0);
+        v["frame"]["index"] = serde_json::json!(2);
+    });
+    let e = refused("n0-r00");
+    assert!(
+        e.contains(rel)
+            && e.contains("frame 2 of sequence \"n0-r00\" (5 frames) is run \"n0-r00-f0002\""),
+        "{e}"
+    );
 }

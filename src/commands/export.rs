@@ -23,9 +23,16 @@ pub fn execute(args: ExportArgs) -> Outcome {
     let summary = export::export(&args.out, args.truth.as_deref(), dir, &options)
         .map_err(|e| report_folder_error(e, dir))?;
     summary.notes.iter().for_each(|n| eprintln!("rsasim: {n}"));
+    let what = if summary.sequences == 0 {
+        format!("{} run(s)", summary.runs)
+    } else {
+        format!(
+            "{} trial(s) ({} sequence(s), {} frame(s) in all)",
+            summary.runs, summary.sequences, summary.frames
+        )
+    };
     eprintln!(
-        "rsasim export: {} run(s), {} files for {} in {:.1} s -> {}",
-        summary.runs,
+        "rsasim export: {what}, {} files for {} in {:.1} s -> {}",
         summary.files,
         options.target.name(),
         start.elapsed().as_secs_f64(),

@@ -185,6 +185,12 @@ pub fn exported(scenario: &str, to: &str, extra: &[&str]) -> (tempfile::TempDir,
     let out = tmp.path().join("out");
     run_scenario(scenario, &out, &[]);
     let dest = tmp.path().join(to);
+    export_ok(&out, to, &dest, extra);
+    (tmp, out, dest)
+}
+
+/// `rsasim export <out> --to <to> --dir <dest>` with the `extra` options.
+pub fn export(out: &Path, to: &str, dest: &Path, extra: &[&str]) -> Output {
     let args = [
         &[
             "export",
@@ -197,9 +203,23 @@ pub fn exported(scenario: &str, to: &str, extra: &[&str]) -> (tempfile::TempDir,
         extra,
     ]
     .concat();
-    let o = rsasim(&args, &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    (tmp, out, dest)
+    rsasim(&args, &[])
+}
+
+/// [`export`], which must succeed; returns its stderr (the notes).
+pub fn export_ok(out: &Path, to: &str, dest: &Path, extra: &[&str]) -> String {
+    let o = export(out, to, dest, extra);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    err
+}
+
+/// The detector `id` of `truth`'s run.
+pub fn detector<'a>(
+    truth: &'a rsasim::output::Truth,
+    id: &str,
+) -> &'a rsasim::expand::DetectorState {
+    truth.run.detectors.iter().find(|d| d.id == id).unwrap()
 }
 
 /// Numbers of a comma-separated line.

@@ -36,6 +36,7 @@ use glam::{DMat3, DVec3};
 
 use super::rotation::{CheckedRotation, checked_rotation, rotation_from_quaternion};
 use crate::diagnostic::{Diagnostic, KeyPath};
+use crate::interop::xmalab_points2d::PixelOptions;
 use crate::output::received::{MAX_JSON_BYTES, ReceivedFolder};
 use crate::output::{MEASURED_FORMAT, Measured, Truth};
 
@@ -246,6 +247,136 @@ fn json_line_nth(text: &str, section: &str, value: &str, nth: usize) -> Option<(
 /// (not a link, not a FIFO) within the size cap.
 pub fn read_results(file: &Path) -> Result<Vec<u8>, Vec<Diagnostic>> {
     crate::output::received::read_in_folder(file, MAX_JSON_BYTES).map_err(|d| vec![d])
+}
+
+/// A results file of this name in every run folder (or, with `results_in`, in
+/// `results_in/<run id>/`), read and checked, by run id. A name ending in `.csv` is XMALab's
+/// export of a trial, one ending in `.tra` Autoscoper's tracking of it, any other a
+/// `measured.json`. With `results_in`, XMALab's and Autoscoper's file of a sequence is
+/// `results_in/<sequence id>/<name>`, one for the sequence's trial as `rsasim export` wrote it:
+/// line (or data row) k is the k-th frame of the sequence in the output
+/// ([`crate::interop::trials`]). Run folders without the file are left out (their runs are
+/// then excluded); every problem of the files read is an error.
+pub fn load_per_run(
+    name: &str,
+    results_in: Option<&Path>,
+    truths: &[TruthRun],
+    truth_root: &Path,
+    xmalab_2d: PixelOptions,
+) -> Result<BTreeMap<String, RunMeasurement>, Vec<Diagnostic>> {
+    let lower = name.to_ascii_lowercase();
+    let client = if lower.ends_with(".csv") {
+        Client::Xmalab(xmalab_2d)
+    } else if lower.ends_with(".tra") {
+        // Autoscoper's poses are of its volumes: the volume frame's offset in each mesh
+        // phantom's frame comes from the meshes of the output (phantoms/).
+        Client::Autoscoper(
+            crate::output::exam::load_setup(truth_root)?
+                .meshes
+                .iter()
+                .map(|(id, m)| (id.clone(), crate::interop::volume::frame_offset_mm(m)))
+                .collect(),
+        )
+    } else {
+        return load_json_per_run(name, truths);
+    };
+    let trials = crate::interop::trials::group(
+        truths.iter().collect(),
+        |t| &t.truth.run,
+        |t| {
+            truth_root
+                .join("runs")
+                .join(&t.truth.run.id)
+                .join("truth.json")
+        },
+    )?;
+    let mut found = BTreeMap::new();
+    let mut errors = Vec::new();
+    for (id, frames) in &trials {
+        // A sequence's file is its trial's; a run's (or a frame's, in the run folders) its own.
+        let files: Vec<(PathBuf, Vec<&TruthRun>)> = match results_in {
+            Some(dir) if frames[0].truth.run.frame.is_some() => {
+                vec![(dir.join(id).join(name), frames.clone())]
+            }
+            _ => frames
+                .iter()
+                .map(|t| (t.dir.join(name), vec![*t]))
+                .collect(),
+        };
+        for (file, runs) in files {
+            if !file.exists() {
+                continue;
+            }
+            match client.read(&file, &runs) {
+                Ok(results) => found.extend(results),
+                Err(e) => errors.extend(e),
+            }
+        }
+    }
+    if errors.is_empty() {
+        Ok(found)
+    } else {
+        Err(errors)
+    }
+}
+
+/// `measured.json` files named `name`, one in every run folder that has one.
+fn load_json_per_run(
+    name: &str,
+    truths: &[TruthRun],
+) -> Result<BTreeMap<String, RunMeasurement>, Vec<Diagnostic>> {
+    let mut found = BTreeMap::new();
+    let mut errors = Vec::new();
+    for t in truths {
+        let file = t.dir.join(name);
+        if !file.exists() {
+            continue;
+        }
+        match load_measured_json(&file, &t.truth) {
+            Ok(m) => drop(found.insert(t.truth.run.id.clone(), m)),
+            Err(e) => errors.extend(e),
+        }
+    }
+    if errors.is_empty() {
+        Ok(found)
+    } else {
+        Err(errors)
+    }
+}
+
+/// The program whose files are read, with what reading them needs.
+enum Client {
+    /// XMALab's CSV exports, with how its 2-D points were exported.
+    Xmalab(PixelOptions),
+    /// Autoscoper's `.tra`, with each mesh phantom's volume frame offset, mm.
+    Autoscoper(BTreeMap<String, glam::DVec3>),
+}
+
+impl Client {
+    /// The results of the frames `runs` (one trial's, in frame order) in `file`, checked, by
+    /// run id.
+    fn read(
+        &self,
+        file: &Path,
+        runs: &[&TruthRun],
+    ) -> Result<Vec<(String, RunMeasurement)>, Vec<Diagnostic>> {
+        let truths: Vec<&Truth> = runs.iter().map(|t| &t.truth).collect();
+        let measured = match self {
+            Client::Xmalab(pixels) => {
+                crate::interop::xmalab::read_export_frames(file, &truths, *pixels)?
+            }
+            Client::Autoscoper(offsets) => {
+                crate::interop::autoscoper_tracking::read_tracking_frames(file, &truths, &|p| {
+                    offsets.get(p).copied()
+                })?
+            }
+        };
+        measured
+            .into_iter()
+            .zip(truths)
+            .map(|(m, truth)| check_measured(file, "", m, truth).map(|r| (truth.run.id.clone(), r)))
+            .collect()
+    }
 }
 
 /// Reads one run's `measured.json`, checking the run id, every entity id against `truth` (each

@@ -30,8 +30,7 @@ use sha2::{Digest, Sha256};
 use crate::diagnostic::Diagnostic;
 use assemble::{MtpmPoints, Scored, assemble};
 use input::{
-    RunMeasurement, check_measured, check_same_entities, load_measured_csv, load_measured_json,
-    load_truths_from,
+    RunMeasurement, check_same_entities, load_measured_csv, load_per_run, load_truths_from,
 };
 use rsasim_core::scenario::{self, hex};
 use rsasim_files::output;
@@ -50,7 +49,8 @@ pub enum MeasuredSource {
     /// as Autoscoper's tracking of it ([`crate::interop::autoscoper_tracking::read_tracking`]).
     PerRun(String),
     /// A file of this name in `dir/<run id>/` for every run (e.g. the folder `rsasim export`
-    /// wrote, where XMALab's exports were saved).
+    /// wrote, where XMALab's exports were saved); XMALab's and Autoscoper's files of a sequence
+    /// in `dir/<sequence id>/`, one for all its frames ([`input::load_per_run`]).
     PerRunIn {
         /// The file name.
         name: String,
@@ -143,47 +143,11 @@ pub fn evaluate_with_truth(
     let measurements: BTreeMap<String, RunMeasurement> = match &measured {
         MeasuredSource::Auto => BTreeMap::new(),
         MeasuredSource::Csv(file) => load_measured_csv(file, &truths)?,
-        MeasuredSource::PerRun(name) | MeasuredSource::PerRunIn { name, .. } => {
-            let mut found = BTreeMap::new();
-            let mut errors = Vec::new();
-            // Autoscoper's poses are of its volumes: the volume frame's offset in each mesh
-            // phantom's frame comes from the meshes of the output (phantoms/).
-            let volume_offsets: BTreeMap<String, glam::DVec3> =
-                if name.to_ascii_lowercase().ends_with(".tra") {
-                    crate::output::exam::load_setup(truth_root)?
-                        .meshes
-                        .iter()
-                        .map(|(id, m)| (id.clone(), crate::interop::volume::frame_offset_mm(m)))
-                        .collect()
-                } else {
-                    BTreeMap::new()
-                };
-            for t in &truths {
-                let file = t.dir.join(name);
-                if !file.exists() {
-                    continue;
-                }
-                let lower = name.to_ascii_lowercase();
-                let loaded = if lower.ends_with(".csv") {
-                    crate::interop::xmalab::read_export(&file, &t.truth, options.xmalab_2d)
-                        .and_then(|m| check_measured(&file, "", m, &t.truth))
-                } else if lower.ends_with(".tra") {
-                    crate::interop::autoscoper_tracking::read_tracking(&file, &t.truth, &|p| {
-                        volume_offsets.get(p).copied()
-                    })
-                    .and_then(|m| check_measured(&file, "", m, &t.truth))
-                } else {
-                    load_measured_json(&file, &t.truth)
-                };
-                match loaded {
-                    Ok(m) => drop(found.insert(t.truth.run.id.clone(), m)),
-                    Err(e) => errors.extend(e),
-                }
-            }
-            if !errors.is_empty() {
-                return Err(errors);
-            }
-            found
+        MeasuredSource::PerRun(name) => {
+            load_per_run(name, None, &truths, truth_root, options.xmalab_2d)?
+        }
+        MeasuredSource::PerRunIn { name, dir } => {
+            load_per_run(name, Some(dir), &truths, truth_root, options.xmalab_2d)?
         }
     };
     let study = study::load_study(truth_root)?;

@@ -1,12 +1,16 @@
 //! Autoscoper's tracking results (`.tra`) read back as poses, for `rsasim evaluate`.
 //!
-//! What Autoscoper writes (`AutoscoperMainWindow::save_tracking_results`): one line per frame,
+//! What Autoscoper writes (`AutoscoperMainWindow::save_tracking_results`, autoscoper/src/ui/
+//! AutoscoperMainWindow.cpp: a loop over the trial's frames, one line each): one line per frame,
 //! values separated by a comma or a space, no header; per volume either a 4×4 matrix (16 values,
 //! "row" order: translation at 1-based positions 4, 8 and 12; or "column" order: at 13, 14 and 15)
 //! or `x, y, z, yaw, pitch, roll` (mm and degrees, R = Rz(yaw)·Ry(pitch)·Rx(roll),
 //! `CoordFrame::from_xyzypr`); with "all volumes" the volumes follow each other on the line, in the
 //! trial's order. An untracked frame is `NaN` in every value. The pose is world ← volume frame
 //! (see [`super::volume`]), turned here into the phantom's pose with the volume frame's offset.
+//!
+//! A run's trial has one frame, so its file one line; a sequence's trial (exported as one, see
+//! [`super::trials`]) has its frames, so its file one line per frame, line k for frame k.
 //!
 //! Which volumes a file holds is told by its name, as rsasim's export names the trials: `<exposure>_<phantom>.tra`
 //! (Autoscoper's own name for one volume's tracking of trial `<exposure>.cfg`) holds that phantom;
@@ -59,9 +63,9 @@ fn volumes_named<'a>(
         names.push(format!("{}.tra", exposure.id));
     }
     Err(format!(
-        "the name `{}` names no trial of run {}: give {}",
+        "the name `{}` names no trial of {}: give {}",
         cut(file_name),
-        truth.run.id,
+        super::trials::trial_label(&truth.run),
         names.join(" or ")
     ))
 }
@@ -105,6 +109,24 @@ pub fn read_tracking(
     truth: &Truth,
     offset_mm: &dyn Fn(&str) -> Option<DVec3>,
 ) -> Result<Measured, Vec<Diagnostic>> {
+    let mut frames = read_tracking_frames(file, &[truth], offset_mm)?;
+    Ok(frames.remove(0))
+}
+
+/// Reads an Autoscoper tracking result of one trial ([`super::trials`]): `frames` are the
+/// trial's runs in frame order (one for a run without a frame), and line k of the file (blank
+/// lines aside) is the pose of frame k, as `AutoscoperMainWindow::save_tracking_results` writes
+/// one line per frame of the trial, frame 0 first. A file with another number of lines is an
+/// error naming its first line too many, or the line after its last. Returns one result per
+/// frame, in the same order.
+pub fn read_tracking_frames(
+    file: &Path,
+    frames: &[&Truth],
+    offset_mm: &dyn Fn(&str) -> Option<DVec3>,
+) -> Result<Vec<Measured>, Vec<Diagnostic>> {
+    let Some(first) = frames.first() else {
+        return Ok(Vec::new());
+    };
     let bytes =
         crate::output::received::read_in_folder(file, crate::output::received::MAX_TABLE_BYTES)
             .map_err(|d| vec![d])?;
@@ -115,32 +137,60 @@ pub fn read_tracking(
         ]
     })?;
     let name = file.file_name().unwrap_or_default().to_string_lossy();
-    let phantoms = volumes_named(&name, truth, &|p| offset_mm(p).is_some()).map_err(|why| {
+    let phantoms = volumes_named(&name, first, &|p| offset_mm(p).is_some()).map_err(|why| {
         vec![Diagnostic::file_error(file, why).with_help(
             "save the tracking of trial <exposure>.cfg as <exposure>_<phantom>.tra (one volume) or <exposure>.tra (all volumes)",
         )]
     })?;
-    let at = |line: usize, message: String, help: &str| {
-        let mut d = Diagnostic::file_error(file, message).with_help(help);
-        d.line_col = Some((line, 1));
-        vec![d]
-    };
     let lines: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty())
         .collect();
-    let [(line, row)] = lines.as_slice() else {
-        return Err(at(
-            lines.get(1).map_or(1, |l| l.0),
-            format!(
-                "the file holds {} frame(s); an exported rsasim run is a one-frame trial",
-                lines.len()
-            ),
-            "save the tracking of each run's trial into that run's folder (one line per file)",
+    let runs: Vec<&crate::expand::Run> = frames.iter().map(|t| &t.run).collect();
+    if let Some(problem) = super::trials::frame_count_problem(lines.len(), &runs, "line") {
+        let line = match lines.get(frames.len()) {
+            Some(surplus) => surplus.0,
+            None => lines.last().map_or(1, |l| l.0 + 1),
+        };
+        return Err(line_error(
+            file,
+            line,
+            problem,
+            if first.run.frame.is_some() {
+                "save the tracking of the sequence's trial (every frame, as Autoscoper saves it) into the sequence's folder"
+            } else {
+                "save the tracking of each run's trial into that run's folder (one line per file)"
+            },
         ));
-    };
+    }
+    lines
+        .iter()
+        .zip(frames)
+        .map(|(&(line, row), truth)| pose_line(file, line, row, &phantoms, truth, &name, offset_mm))
+        .collect()
+}
+
+/// An error at the start of `line` of `file`.
+fn line_error(file: &Path, line: usize, message: String, help: &str) -> Vec<Diagnostic> {
+    let mut d = Diagnostic::file_error(file, message).with_help(help);
+    d.line_col = Some((line, 1));
+    vec![d]
+}
+
+/// The poses of one line `row` (line `line` of `file`, named `name`): the volumes `phantoms`
+/// of the frame `truth`.
+fn pose_line(
+    file: &Path,
+    line: usize,
+    row: &str,
+    phantoms: &[&str],
+    truth: &Truth,
+    name: &str,
+    offset_mm: &dyn Fn(&str) -> Option<DVec3>,
+) -> Result<Measured, Vec<Diagnostic>> {
+    let at = |message: String, help: &str| line_error(file, line, message, help);
     let mut values = Vec::new();
     for token in row.split([',', ' ', '\t']).filter(|t| !t.is_empty()) {
         // C++ streams print NaN as `nan`, `-nan` or `NaN`.
@@ -154,7 +204,6 @@ pub fn read_tracking(
                 Ok(v) if v.is_finite() && v.abs() <= crate::scenario::MAX_ABS => v,
                 _ => {
                     return Err(at(
-                        *line,
                         format!("`{}` is not a finite number", cut(token)),
                         "Autoscoper writes decimal numbers or NaN",
                     ));
@@ -169,7 +218,6 @@ pub fn read_tracking(
         l if l == 6 * n => 6,
         l => {
             return Err(at(
-                *line,
                 format!(
                     "{l} values for {n} volume(s) ({}): Autoscoper writes 16 per volume (a matrix) or 6 (x, y, z, yaw, pitch, roll)",
                     phantoms.join(", ")
@@ -181,7 +229,7 @@ pub fn read_tracking(
     let mut measured = Measured {
         format: MEASURED_FORMAT.into(),
         run: truth.run.id.clone(),
-        software: format!("Autoscoper ({})", cut(&name)),
+        software: format!("Autoscoper ({})", cut(name)),
         methods: None,
         sources: Vec::new(),
         detectors: Vec::new(),
@@ -191,7 +239,6 @@ pub fn read_tracking(
         let v = &values[k * per..(k + 1) * per];
         if v.iter().any(|x| x.is_nan()) && !v.iter().all(|x| x.is_nan()) {
             return Err(at(
-                *line,
                 format!("volume `{phantom}` is NaN in some values but not all"),
                 "an untracked frame is NaN in every value",
             ));
@@ -202,7 +249,6 @@ pub fn read_tracking(
         let bottom = [m[12], m[13], m[14], m[15]];
         if bottom != [0.0, 0.0, 0.0, 1.0] {
             return Err(at(
-                *line,
                 format!(
                     "volume `{phantom}`: the matrix's last row (row order) or column (column order) is {bottom:?}, not 0, 0, 0, 1"
                 ),

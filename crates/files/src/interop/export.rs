@@ -2,28 +2,32 @@
 //! XMALab or Autoscoper open, with the exam's known (true) calibration, or the calibration a
 //! software measured.
 //!
-//! Layout of DEST (one folder per run, since every run has its own geometry):
+//! Layout of DEST (one folder per trial: a run, since every run has its own geometry, or a
+//! sequence, whose frames share one; see [`super::trials`]):
 //!
 //! ```text
 //! DEST/README.md
-//! DEST/<run>/calibration/<detector>_MayaCam.txt   MayaCam 2.0, one per detector (both programs)
-//! DEST/<run>/calibration/dlt11.csv                 DLT-11: 11 rows, one column per detector (xmalab)
-//! DEST/<run>/calibration/frame_specification.csv   the box beads, box frame (xmalab)
-//! DEST/<run>/calibration/references.ref            four reference beads (xmalab)
-//! DEST/<run>/images/<exposure>-<detector>/<exposure>-<detector>.0001.tif
-//! DEST/<run>/models/<phantom>_markers.csv          bead names and local coordinates (xmalab)
-//! DEST/<run>/models/<phantom>.obj | .stl           the model mesh, local frame, mm
-//! DEST/<run>/<exposure>.cfg                        Autoscoper trial per exposure with a model (autoscoper)
-//! DEST/<run>/truth/<exposure>_<phantom>.tra        the true pose of each volume (autoscoper)
+//! DEST/<trial>/calibration/<detector>_MayaCam.txt   MayaCam 2.0, one per detector (both programs)
+//! DEST/<trial>/calibration/dlt11.csv                 DLT-11: 11 rows, one column per detector (xmalab)
+//! DEST/<trial>/calibration/frame_specification.csv   the box beads, box frame (xmalab)
+//! DEST/<trial>/calibration/references.ref            four reference beads (xmalab)
+//! DEST/<trial>/images/<exposure>-<detector>/<exposure>-<detector>.<NNNN>.tif   a frame each: 0001 for a run, frame index + 1 in a sequence
+//! DEST/<trial>/models/<phantom>_markers.csv          bead names and local coordinates (xmalab)
+//! DEST/<trial>/models/<phantom>.obj | .stl           the model mesh, local frame, mm
+//! DEST/<trial>/<exposure>.cfg                        Autoscoper trial per exposure with a model (autoscoper)
+//! DEST/<trial>/truth/<exposure>_<phantom>.tra        the true pose of each volume, a line per frame (autoscoper)
 //! DEST/volumes/<phantom>.tif | .stl                each model as Autoscoper's volume and mesh (autoscoper)
 //! ```
+//!
+//! `<trial>` is the run id of a run without frames, the sequence id (`n0-r00`) of a sequence's
+//! frames (`n0-r00-f0000` …).
 
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
 use super::camera::PinholeCamera;
-use super::{autoscoper, reference_beads, volume, xmalab};
+use super::{autoscoper, reference_beads, trials, volume, xmalab};
 use crate::diagnostic::Diagnostic;
 use crate::expand::{DetectorState, Run};
 use crate::geometry::rotation_from_rows;
@@ -125,8 +129,12 @@ pub struct Options {
 /// What an export wrote.
 #[derive(Debug)]
 pub struct Summary {
-    /// Runs exported.
+    /// Trials exported: runs without a frame, and sequences.
     pub runs: usize,
+    /// Of those, sequences.
+    pub sequences: usize,
+    /// Frames exported: one per run without a frame, and every frame of every sequence.
+    pub frames: usize,
     /// Files written.
     pub files: usize,
     /// The export folder as given.
@@ -137,13 +145,38 @@ pub struct Summary {
 
 pub use super::failure::Error;
 
-/// One run, read and checked, ready to be written.
+/// One run (a run without a frame, or one frame of a sequence), read and checked.
 struct RunExport {
     truth: Truth,
     dir: PathBuf,
+}
+
+/// One trial ([`trials`]), read and checked, ready to be written: a run without a frame, or the
+/// frames of a sequence present in the output, in frame order (never none).
+struct TrialExport {
+    /// The folder name: the run id, or the sequence id.
+    id: String,
+    frames: Vec<RunExport>,
+    /// The cameras of every frame (one geometry per trial).
     cameras: Vec<(String, PinholeCamera)>,
     /// XMALab: the calibration box and its four reference beads, or why no four qualify.
     references: Option<(usize, Result<[usize; 4], reference_beads::NoFour>)>,
+}
+
+impl TrialExport {
+    /// The trial's first frame: its cameras, models and trials are every frame's.
+    fn first(&self) -> &RunExport {
+        &self.frames[0]
+    }
+
+    /// `run <id>` or `sequence <id>`, as messages name it.
+    fn label(&self) -> String {
+        trials::trial_label(&self.first().truth.run)
+    }
+
+    fn is_sequence(&self) -> bool {
+        self.first().truth.run.frame.is_some()
+    }
 }
 
 /// Exports `out` into the new folder `dest` (see the module docs). With `truth_dir` (the blind
@@ -152,8 +185,9 @@ struct RunExport {
 ///
 /// `out` (and `truth_dir`) are received folders: the truth (every `truth.json` and
 /// `scenario.toml`) is verified against the manifest before it is parsed, every id that becomes
-/// part of an exported path is a plain name, and each run folder is named after its run id, so
-/// nothing is written outside `dest` and no run replaces another.
+/// part of an exported path is a plain name, each run folder is named after its run id and each
+/// frame's run id is its sequence's and index's, so nothing is written outside `dest` and no
+/// trial or frame replaces another.
 pub fn export(
     out: &Path,
     truth_dir: Option<&Path>,
@@ -176,23 +210,10 @@ pub fn export(
         }
     };
     let setup = load_setup(truth_root)?;
-    for name in &options.runs {
-        if let Some(why) = crate::output::received::name_problem(name) {
-            return Err(Error::Input(vec![
-                Diagnostic::file_error(
-                    &out.join("runs"),
-                    format!(
-                        "--runs {:?} is not a run id: {why}",
-                        crate::diagnostic::cut(name)
-                    ),
-                )
-                .with_help("give run ids as the folders of OUT/runs are named (e.g. n0-r00)"),
-            ]));
-        }
-    }
+    check_run_options(out, &options.runs)?;
     let mut runs = Vec::new();
     for id in truth_folder.sub_folders("runs")? {
-        if !options.runs.is_empty() && !options.runs.contains(&id) {
+        if !may_be_selected(&options.runs, &id) {
             continue;
         }
         if !truth_folder.exists(&format!("runs/{id}/truth.json")) {
@@ -200,90 +221,22 @@ pub fn export(
         }
         let truth = crate::output::truth::read_run_truth(&truth_folder, &id)?;
         let dir = images_folder.sub_folder(&format!("runs/{id}"))?;
-        let calibration = match &options.calibration_from {
-            None => None,
-            Some(name) => {
-                crate::output::received::check_name(
-                    Path::new("--calibration-from"),
-                    "--calibration-from",
-                    name,
-                )?;
-                let rel = format!("runs/{id}/{name}");
-                let file = images_folder.path(&rel);
-                let bytes = images_folder
-                    .read(&rel, crate::output::received::MAX_JSON_BYTES)
-                    .map_err(|d| {
-                        vec![d.with_help("give a results file every run folder holds, e.g. measured-rsasim-dlt-markers.json")]
-                    })?;
-                Some(parse_json::<Measured>(
-                    &file,
-                    &bytes,
-                    "schemas/measured.schema.json",
-                )?)
-            }
-        };
-        let cameras = cameras(&truth.run, calibration.as_ref(), &dir, options)?;
-        let mut run = RunExport {
-            truth,
-            dir,
-            cameras,
-            references: None,
-        };
-        if options.target == Target::Xmalab && options.calibration_object != CalibrationObject::Omit
-        {
-            let cal = run
-                .truth
-                .run
-                .phantoms
-                .iter()
-                .position(|p| p.kind == "calibration_box");
-            if let Some(c) = cal {
-                let (beads, views) = reference_views(&run, &setup, &run.truth.run.phantoms[c])?;
-                let choice = reference_beads::choose(&beads, &views);
-                if let (Err(e), CalibrationObject::Required) = (&choice, options.calibration_object)
-                {
-                    return Err(Error::Input(vec![Diagnostic::file_error(
-                        &run.dir.join("truth.json"),
-                        format!("run {id}, calibration box `{}`: {e}", run.truth.run.phantoms[c].id),
-                    )
-                    .with_help("XMALab's cube calibration needs four beads it can tell apart in every calibration view, on plates not seen edge-on, spanning a tetrahedron; the MayaCam cameras hold the true calibration without it (XMALab: \"New dataset with external calibration\"); export with --calibration-object when-possible to write the cube files only where four qualify")]));
-                }
-                run.references = Some((c, choice));
-            }
-        }
-        runs.push(run);
+        refuse_frame_selection(&options.runs, &truth.run, &dir)?;
+        runs.push(RunExport { truth, dir });
     }
-    let missing: Vec<&String> = options
-        .runs
-        .iter()
-        .filter(|r| !runs.iter().any(|x| &x.truth.run.id == *r))
-        .collect();
-    if !missing.is_empty() || runs.is_empty() {
-        let what = if missing.is_empty() {
-            "no run folder with a truth.json".to_string()
-        } else {
-            format!(
-                "no run {} in this output",
-                missing
-                    .iter()
-                    .map(|m| format!("`{}`", crate::diagnostic::cut(m)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        };
-        return Err(Error::Input(vec![
-            Diagnostic::file_error(&truth_root.join("runs"), what).with_help(
-                "give run ids as the folders of OUT/runs are named (e.g. n0-r00); an export needs the truth: give the ordinary output folder, or a blind images folder with --truth TRUTH_DIR",
-            ),
-        ]));
+    let grouped = trials::group(runs, |r| &r.truth.run, |r| r.dir.join("truth.json"))?;
+    refuse_missing(truth_root, &options.runs, &grouped)?;
+    let mut trials = Vec::new();
+    for (id, frames) in grouped {
+        trials.push(trial_export(id, frames, &setup, &images_folder, options)?);
     }
     if let Some(t) = truth_dir {
         refuse_inside(t, dest)?;
     }
-    check_images(&runs)?;
+    check_images(&trials)?;
     let volumes = if options.target == Target::Autoscoper {
         model_volumes(
-            &runs,
+            &trials,
             &setup,
             options.voxel_mm,
             &truth_root.join("scenario.toml"),
@@ -295,20 +248,8 @@ pub fn export(
     let target =
         OutputTarget::claim(dest, FolderKind::Export).map_err(|d| Error::Input(vec![*d]))?;
     let mut notes = target.notes.clone();
-    let without_cube: Vec<&RunExport> = runs
-        .iter()
-        .filter(|r| matches!(r.references, Some((_, Err(_)))))
-        .collect();
-    if let Some(first) = without_cube.first()
-        && let Some((_, Err(why))) = &first.references
-    {
-        notes.push(format!(
-            "XMALab's calibration object (frame_specification.csv, references.ref) is not written for {} of {} run(s): in run {}, {why}. The cameras hold the calibration (XMALab: \"New dataset with external calibration\")",
-            without_cube.len(),
-            runs.len(),
-            first.truth.run.id
-        ));
-    }
+    notes.extend(cube_note(&trials));
+    notes.extend(trials.iter().filter_map(partial_sequence));
     let staged = target.stage().map_err(|e| Error::Write(e.to_string()))?;
     let root = staged.path().to_path_buf();
     let mut files = 0usize;
@@ -321,30 +262,302 @@ pub fn export(
         files += 1;
         Ok(())
     };
-    write("README.md", readme(out, options, &runs, &setup).as_bytes())?;
+    write(
+        "README.md",
+        readme(out, options, &trials, &setup).as_bytes(),
+    )?;
     for v in &volumes {
         write(&format!("volumes/{}.tif", v.phantom), &v.tiff)?;
         write(&format!("volumes/{}.stl", v.phantom), &v.stl)?;
     }
-    for run in &runs {
-        write_run(run, &setup, options, &volumes, &mut write)?;
+    for trial in &trials {
+        write_trial(trial, &setup, options, &volumes, &mut write)?;
     }
     let committed = staged.commit().map_err(|e| Error::Write(e.to_string()))?;
     notes.extend(committed.notes);
     Ok(Summary {
-        runs: runs.len(),
+        runs: trials.len(),
+        sequences: trials.iter().filter(|t| t.is_sequence()).count(),
+        frames: trials.iter().map(|t| t.frames.len()).sum(),
         files,
         dir: committed.path,
         notes,
     })
 }
 
+/// Refuses a `--run` value that is no plain name.
+fn check_run_options(out: &Path, runs: &[String]) -> Result<(), Error> {
+    for name in runs {
+        if let Some(why) = crate::output::received::name_problem(name) {
+            return Err(Error::Input(vec![
+                Diagnostic::file_error(
+                    &out.join("runs"),
+                    format!(
+                        "--run {:?} is not a run or sequence id: {why}",
+                        crate::diagnostic::cut(name)
+                    ),
+                )
+                .with_help(RUN_IDS_HELP),
+            ]));
+        }
+    }
+    Ok(())
+}
+
+/// How `--run` names what to export.
+const RUN_IDS_HELP: &str = "give run ids as the folders of OUT/runs are named (e.g. n0-r00), and for a sequence its id, the run id without the frame (n0-r00 for n0-r00-f0000 …)";
+
+/// Whether the run folder `id` may belong to what `--run` selects (every run when it selects
+/// nothing): a run id given, or a frame of a sequence id given (`<sequence>-f<k>`), to be told
+/// apart by its truth ([`refuse_frame_selection`]).
+fn may_be_selected(selected: &[String], id: &str) -> bool {
+    selected.is_empty()
+        || selected.iter().any(|r| {
+            id == r
+                || id
+                    .strip_prefix(r.as_str())
+                    .is_some_and(|rest| rest.starts_with("-f"))
+        })
+}
+
+/// Refuses a frame selected by its own run id: a sequence is exported whole, as one trial.
+fn refuse_frame_selection(selected: &[String], run: &Run, dir: &Path) -> Result<(), Error> {
+    let trial = trials::trial_id(run);
+    match &run.frame {
+        Some(f) if !selected.is_empty() && !selected.iter().any(|r| r == trial) => {
+            Err(Error::Input(vec![
+                Diagnostic::file_error(
+                    &dir.join("truth.json"),
+                    format!(
+                        "--run {} is frame {} of sequence {trial}: a sequence is exported whole, as one trial",
+                        run.id, f.index
+                    ),
+                )
+                .with_help(format!("give the sequence id: --run {trial}")),
+            ]))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Refuses an export with nothing to export, or with a `--run` that names no run or sequence.
+fn refuse_missing(
+    truth_root: &Path,
+    selected: &[String],
+    grouped: &[(String, Vec<RunExport>)],
+) -> Result<(), Error> {
+    let missing: Vec<&String> = selected
+        .iter()
+        .filter(|r| !grouped.iter().any(|(id, _)| id == *r))
+        .collect();
+    if missing.is_empty() && !grouped.is_empty() {
+        return Ok(());
+    }
+    let what = if missing.is_empty() {
+        "no run folder with a truth.json".to_string()
+    } else {
+        format!(
+            "no run {} in this output",
+            missing
+                .iter()
+                .map(|m| format!("`{}`", crate::diagnostic::cut(m)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    Err(Error::Input(vec![
+        Diagnostic::file_error(&truth_root.join("runs"), what).with_help(format!(
+            "{RUN_IDS_HELP}; an export needs the truth: give the ordinary output folder, or a blind images folder with --truth TRUTH_DIR"
+        )),
+    ]))
+}
+
+/// One trial, read and checked: its frames' cameras (the same in every frame: a mismatch is an
+/// input error naming the frame), the exported cameras (the truth's, or those measured in the
+/// first frame's `--calibration-from` file) and XMALab's reference beads.
+fn trial_export(
+    id: String,
+    frames: Vec<RunExport>,
+    setup: &Setup,
+    images_folder: &ReceivedFolder,
+    options: &Options,
+) -> Result<TrialExport, Error> {
+    let Some(first) = frames.first() else {
+        return Err(Error::Write(format!("trial {id} has no frame")));
+    };
+    let true_cameras = cameras(&first.truth.run, None, &first.dir, options)?;
+    for frame in &frames[1..] {
+        check_same_setup(first, frame, &true_cameras, options)?;
+    }
+    let cameras = match &options.calibration_from {
+        None => true_cameras,
+        Some(name) => {
+            let measured = read_calibration(images_folder, &first.truth.run.id, name)?;
+            cameras(&first.truth.run, Some(&measured), &first.dir, options)?
+        }
+    };
+    let mut trial = TrialExport {
+        id,
+        frames,
+        cameras,
+        references: None,
+    };
+    trial.references = references(&trial, setup, options)?;
+    Ok(trial)
+}
+
+/// Refuses a frame whose true cameras, exposures or phantoms are not those of the sequence's
+/// first frame: a sequence's frames share one geometry by construction, and its trial has one
+/// calibration, one set of models and one line per frame in each `.tra`.
+fn check_same_setup(
+    first: &RunExport,
+    frame: &RunExport,
+    first_cameras: &[(String, PinholeCamera)],
+    options: &Options,
+) -> Result<(), Error> {
+    let own = cameras(&frame.truth.run, None, &frame.dir, options)?;
+    let phantom_ids = |r: &RunExport| -> Vec<String> {
+        r.truth.run.phantoms.iter().map(|p| p.id.clone()).collect()
+    };
+    let differs = if own != first_cameras {
+        own.iter()
+            .zip(first_cameras)
+            .find(|(a, b)| a != b)
+            .map_or_else(
+                || "the detectors differ".to_string(),
+                |(a, _)| format!("the camera of detector `{}` differs", a.0),
+            )
+    } else if frame.truth.run.exposures != first.truth.run.exposures {
+        "the exposures differ".to_string()
+    } else if phantom_ids(frame) != phantom_ids(first) {
+        "the phantoms differ".to_string()
+    } else {
+        return Ok(());
+    };
+    Err(Error::Input(vec![
+        Diagnostic::file_error(
+            &frame.dir.join("truth.json"),
+            format!(
+                "frame {} of {}: {differs} from frame {}'s; the frames of a sequence share one geometry, and its trial one calibration",
+                frame.truth.run.id,
+                trials::trial_label(&frame.truth.run),
+                first.truth.run.id
+            ),
+        )
+        .with_help("the sources, detectors, exposures and phantoms of every frame's truth.json must be the same: this output was edited or mixes outputs"),
+    ]))
+}
+
+/// The results file `name` (`--calibration-from`) of run `run_id`, parsed.
+fn read_calibration(
+    images_folder: &ReceivedFolder,
+    run_id: &str,
+    name: &str,
+) -> Result<Measured, Error> {
+    crate::output::received::check_name(
+        Path::new("--calibration-from"),
+        "--calibration-from",
+        name,
+    )?;
+    let rel = format!("runs/{run_id}/{name}");
+    let file = images_folder.path(&rel);
+    let bytes = images_folder
+        .read(&rel, crate::output::received::MAX_JSON_BYTES)
+        .map_err(|d| {
+            vec![d.with_help("give a results file every run folder holds (for a sequence, its first frame's), e.g. measured-rsasim-dlt-markers.json")]
+        })?;
+    parse_json::<Measured>(&file, &bytes, "schemas/measured.schema.json")
+}
+
+/// XMALab's calibration object of a trial (unless `--calibration-object none`): the box and its
+/// four reference beads, chosen over every calibration view of every frame, or why no four
+/// qualify (an input error with `--calibration-object required`).
+#[allow(clippy::type_complexity)]
+fn references(
+    trial: &TrialExport,
+    setup: &Setup,
+    options: &Options,
+) -> Result<Option<(usize, Result<[usize; 4], reference_beads::NoFour>)>, Error> {
+    if options.target != Target::Xmalab || options.calibration_object == CalibrationObject::Omit {
+        return Ok(None);
+    }
+    let first = trial.first();
+    let Some(c) = first
+        .truth
+        .run
+        .phantoms
+        .iter()
+        .position(|p| p.kind == "calibration_box")
+    else {
+        return Ok(None);
+    };
+    let (beads, views) = reference_views(trial, setup, &first.truth.run.phantoms[c])?;
+    let choice = reference_beads::choose(&beads, &views);
+    if let (Err(e), CalibrationObject::Required) = (&choice, options.calibration_object) {
+        return Err(Error::Input(vec![Diagnostic::file_error(
+            &first.dir.join("truth.json"),
+            format!("{}, calibration box `{}`: {e}", trial.label(), first.truth.run.phantoms[c].id),
+        )
+        .with_help("XMALab's cube calibration needs four beads it can tell apart in every calibration view, on plates not seen edge-on, spanning a tetrahedron; the MayaCam cameras hold the true calibration without it (XMALab: \"New dataset with external calibration\"); export with --calibration-object when-possible to write the cube files only where four qualify")]));
+    }
+    Ok(Some((c, choice)))
+}
+
+/// The note on trials without XMALab's calibration object, if any.
+fn cube_note(trials: &[TrialExport]) -> Option<String> {
+    let without: Vec<&TrialExport> = trials
+        .iter()
+        .filter(|r| matches!(r.references, Some((_, Err(_)))))
+        .collect();
+    let first = without.first()?;
+    let Some((_, Err(why))) = &first.references else {
+        return None;
+    };
+    Some(format!(
+        "XMALab's calibration object (frame_specification.csv, references.ref) is not written for {} of {} {}: in {}, {why}. The cameras hold the calibration (XMALab: \"New dataset with external calibration\")",
+        without.len(),
+        trials.len(),
+        trials_word(trials),
+        first.label()
+    ))
+}
+
+/// `run(s)` for an export of runs without frames, `trial(s)` when it holds a sequence.
+fn trials_word(trials: &[TrialExport]) -> &'static str {
+    if trials.iter().any(TrialExport::is_sequence) {
+        "trial(s)"
+    } else {
+        "run(s)"
+    }
+}
+
+/// The note on a sequence of which the output holds only some frames (a shard's), if so.
+fn partial_sequence(trial: &TrialExport) -> Option<String> {
+    let count = trial.first().truth.run.frame.as_ref()?.count;
+    if trial.frames.len() == count as usize {
+        return None;
+    }
+    let numbers: Vec<String> = trial
+        .frames
+        .iter()
+        .take(6)
+        .map(|f| trials::image_number(f.truth.run.frame.as_ref()))
+        .collect();
+    Some(format!(
+        "sequence {} has {count} frames, of which this output holds {}: its trial holds those, its images numbered by frame ({}{}), so some numbers are missing; frame k of the trial (Autoscoper's line k, XMALab's frame k) is the k-th of them",
+        trial.id,
+        trial.frames.len(),
+        numbers.join(", "),
+        if trial.frames.len() > 6 { ", …" } else { "" }
+    ))
+}
+
 /// Decodes every image of every run once before anything is written, so that an unreadable
 /// image, or one whose size is not its detector's, is an input error (exit 2) with nothing
 /// written, not even the export folder's lock. The pixels are decoded again when written: the
 /// export is not worth holding every image in memory.
-fn check_images(runs: &[RunExport]) -> Result<(), Error> {
-    for run in runs {
+fn check_images(trials: &[TrialExport]) -> Result<(), Error> {
+    for run in trials.iter().flat_map(|t| &t.frames) {
         for image in &run.truth.images {
             let stem = format!("{}-{}", image.exposure, image.detector);
             let (det, (w, h, _)) = run_image(run, image, &stem)?;
@@ -560,13 +773,14 @@ pub fn volume_energy_kev(setup: &Setup) -> f64 {
 /// voxels hold μ of the phantom's material at [`volume_energy_kev`]; a phantom without a
 /// material (binary mode) holds half of full scale, 32768.
 fn model_volumes(
-    runs: &[RunExport],
+    trials: &[TrialExport],
     setup: &Setup,
     voxel_mm: f64,
     scenario_file: &Path,
 ) -> Result<Vec<ModelVolume>, Error> {
-    let mut ids: Vec<&String> = runs
+    let mut ids: Vec<&String> = trials
         .iter()
+        .flat_map(|t| &t.frames)
         .flat_map(|r| r.truth.run.exposures.iter().flat_map(|e| e.phantoms.iter()))
         .filter(|p| setup.meshes.contains_key(*p))
         .collect();
@@ -641,14 +855,23 @@ fn model_volumes(
     Ok(out)
 }
 
-/// The box beads (with their plates' normals) and the calibration views of a run, for the
-/// choice of XMALab's reference beads: every image of an exposure that holds the box, seen
-/// through the run's true camera.
+/// The box beads (with their plates' normals) and the calibration views of a trial, for the
+/// choice of XMALab's reference beads: every image of an exposure that holds the box, in every
+/// frame, seen through the frame's true camera.
 fn reference_views(
-    run: &RunExport,
+    trial: &TrialExport,
     setup: &Setup,
     cal: &crate::expand::PhantomState,
 ) -> Result<(Vec<reference_beads::BoxBead>, Vec<reference_beads::View>), Error> {
+    let mut views = Vec::new();
+    for run in &trial.frames {
+        views.extend(calibration_views(run, cal)?);
+    }
+    Ok((box_beads(setup, cal), views))
+}
+
+/// The box beads of `cal`, each with its plate's normal (box frame).
+fn box_beads(setup: &Setup, cal: &crate::expand::PhantomState) -> Vec<reference_beads::BoxBead> {
     // Plate normals from the scenario's plates (box frame), turned by the box's pose.
     let plates: Vec<(String, DVec3)> = setup
         .scenario
@@ -667,15 +890,21 @@ fn reference_views(
             Some((m.id, cal.rotation * local))
         })
         .collect();
-    let beads: Vec<reference_beads::BoxBead> = cal
-        .markers
+    cal.markers
         .iter()
         .map(|m| reference_beads::BoxBead {
             position_mm: m.position_mm,
             diameter_mm: m.diameter_mm,
             plate_normal: plates.iter().find(|(id, _)| *id == m.id).map(|(_, n)| *n),
         })
-        .collect();
+        .collect()
+}
+
+/// The views of run `run` that hold the box `cal`: each image of an exposure holding it.
+fn calibration_views(
+    run: &RunExport,
+    cal: &crate::expand::PhantomState,
+) -> Result<Vec<reference_beads::View>, Error> {
     let cameras = super::camera::run_cameras(&run.truth.run)
         .map_err(|e| Error::Input(vec![Diagnostic::file_error(&run.dir.join("truth.json"), e)]))?;
     let mut views = Vec::new();
@@ -727,7 +956,7 @@ fn reference_views(
             hidden,
         });
     }
-    Ok((beads, views))
+    Ok(views)
 }
 
 /// An image for the other program: rows flipped (see [`super::camera`]), optionally inverted,
@@ -746,53 +975,91 @@ pub fn export_pixels(pixels: &[u16], width: u32, i_max: u16, invert: bool) -> Ve
     out
 }
 
-fn write_run(
-    run: &RunExport,
+/// The files of one trial, under its folder `<trial id>/`.
+type Write<'a> = dyn FnMut(&str, &[u8]) -> Result<(), Error> + 'a;
+
+/// Writes one trial: its calibration, every frame's images, the models, and for Autoscoper the
+/// trials and the truth `.tra` (a line per frame).
+fn write_trial(
+    trial: &TrialExport,
     setup: &Setup,
     options: &Options,
     volumes: &[ModelVolume],
-    write: &mut dyn FnMut(&str, &[u8]) -> Result<(), Error>,
+    write: &mut Write,
 ) -> Result<(), Error> {
-    let id = &run.truth.run.id;
-    let xmalab = options.target == Target::Xmalab;
-    let dense_bright = options.dense_matter == DenseMatter::Bright;
-    let invert = inverts(setup, options.dense_matter);
-    for (det, cam) in &run.cameras {
+    write_calibration(trial, options, write)?;
+    for run in &trial.frames {
+        write_images(&trial.id, run, setup, options, write)?;
+    }
+    write_models(trial, setup, options.target == Target::Xmalab, write)?;
+    if options.target == Target::Autoscoper {
+        write_autoscoper_trials(trial, volumes, write)?;
+    }
+    Ok(())
+}
+
+/// The cameras (MayaCam 2.0; XMALab also DLT-11) and XMALab's calibration object, once per
+/// trial.
+fn write_calibration(
+    trial: &TrialExport,
+    options: &Options,
+    write: &mut Write,
+) -> Result<(), Error> {
+    let id = &trial.id;
+    let run = trial.first();
+    for (det, cam) in &trial.cameras {
         write(
             &format!("{id}/calibration/{det}_MayaCam.txt"),
             cam.mayacam_text().as_bytes(),
         )?;
     }
-    if xmalab {
-        let dlts: Vec<[f64; 11]> = run
-            .cameras
-            .iter()
-            .map(|(det, c)| {
-                c.dlt().map_err(|e| {
-                    Error::Input(vec![Diagnostic::file_error(
-                        &run.dir.join("truth.json"),
-                        format!("detector `{det}`: {e}"),
-                    )])
-                })
-            })
-            .collect::<Result<_, _>>()?;
-        let text = super::camera_files::dlt11_csv(&dlts);
-        write(&format!("{id}/calibration/dlt11.csv"), text.as_bytes())?;
-        if let Some((c, Ok(four))) = &run.references {
-            let cal = &run.truth.run.phantoms[*c];
-            let beads: Vec<DVec3> = cal.markers.iter().map(|m| m.position_mm).collect();
-            let ids: Vec<String> = cal.markers.iter().map(|m| m.id.clone()).collect();
-            write(
-                &format!("{id}/calibration/frame_specification.csv"),
-                xmalab::frame_specification(&beads, dense_bright).as_bytes(),
-            )?;
-            write(
-                &format!("{id}/calibration/references.ref"),
-                xmalab::references(&ids, four).as_bytes(),
-            )?;
-        }
+    if options.target != Target::Xmalab {
+        return Ok(());
     }
-    // Images.
+    let dlts: Vec<[f64; 11]> = trial
+        .cameras
+        .iter()
+        .map(|(det, c)| {
+            c.dlt().map_err(|e| {
+                Error::Input(vec![Diagnostic::file_error(
+                    &run.dir.join("truth.json"),
+                    format!("detector `{det}`: {e}"),
+                )])
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let text = super::camera_files::dlt11_csv(&dlts);
+    write(&format!("{id}/calibration/dlt11.csv"), text.as_bytes())?;
+    if let Some((c, Ok(four))) = &trial.references {
+        let cal = &run.truth.run.phantoms[*c];
+        let beads: Vec<DVec3> = cal.markers.iter().map(|m| m.position_mm).collect();
+        let ids: Vec<String> = cal.markers.iter().map(|m| m.id.clone()).collect();
+        write(
+            &format!("{id}/calibration/frame_specification.csv"),
+            xmalab::frame_specification(&beads, options.dense_matter == DenseMatter::Bright)
+                .as_bytes(),
+        )?;
+        write(
+            &format!("{id}/calibration/references.ref"),
+            xmalab::references(&ids, four).as_bytes(),
+        )?;
+    }
+    Ok(())
+}
+
+/// The images of one run (a frame of the trial `trial_id`), each numbered by its frame
+/// ([`trials::image_number`]).
+fn write_images(
+    trial_id: &str,
+    run: &RunExport,
+    setup: &Setup,
+    options: &Options,
+    write: &mut Write,
+) -> Result<(), Error> {
+    let id = &run.truth.run.id;
+    let dense_bright = options.dense_matter == DenseMatter::Bright;
+    let invert = inverts(setup, options.dense_matter);
+    let number = trials::image_number(run.truth.run.frame.as_ref());
     for image in &run.truth.images {
         let stem = format!("{}-{}", image.exposure, image.detector);
         let (det, (w, h, pixels)) = run_image(run, image, &stem)?;
@@ -816,10 +1083,25 @@ fn write_run(
             },
         )
         .map_err(Error::Write)?;
-        write(&format!("{id}/images/{stem}/{stem}.0001.tif"), &bytes)?;
+        write(
+            &format!("{trial_id}/images/{stem}/{stem}.{number}.tif"),
+            &bytes,
+        )?;
     }
-    // Models: every phantom with a mesh or beads, other than the calibration box.
-    for phantom in run
+    Ok(())
+}
+
+/// The models of a trial: every phantom with a mesh or beads, other than the calibration box,
+/// its bead table (XMALab) and its mesh, from the first frame (the same in every frame).
+fn write_models(
+    trial: &TrialExport,
+    setup: &Setup,
+    xmalab: bool,
+    write: &mut Write,
+) -> Result<(), Error> {
+    let id = &trial.id;
+    for phantom in trial
+        .first()
         .truth
         .run
         .phantoms
@@ -852,96 +1134,94 @@ fn write_run(
             }
         }
     }
-    if !xmalab {
-        for exposure in &run.truth.run.exposures {
-            let trial: Vec<&ModelVolume> = exposure
-                .phantoms
+    Ok(())
+}
+
+/// Autoscoper: a `.cfg` per exposure holding a model, and each volume's true pose in every frame
+/// as `truth/<exposure>_<phantom>.tra`, one line per frame in frame order.
+fn write_autoscoper_trials(
+    trial: &TrialExport,
+    volumes: &[ModelVolume],
+    write: &mut Write,
+) -> Result<(), Error> {
+    let id = &trial.id;
+    for exposure in &trial.first().truth.run.exposures {
+        let held: Vec<&ModelVolume> = exposure
+            .phantoms
+            .iter()
+            .filter_map(|p| volumes.iter().find(|v| &v.phantom == p))
+            .collect();
+        if held.is_empty() {
+            // Nothing to track (e.g. the box alone): Autoscoper refuses a trial without a
+            // volume (`Trial::validate`: "There must be at least one volume file").
+            continue;
+        }
+        let text = autoscoper::trial_cfg(
+            &trial
+                .cameras
                 .iter()
-                .filter_map(|p| volumes.iter().find(|v| &v.phantom == p))
+                .map(|(d, _)| d.as_str())
+                .collect::<Vec<_>>(),
+            &exposure.id,
+            &held
+                .iter()
+                .map(|v| autoscoper::TrialVolume {
+                    phantom: &v.phantom,
+                    voxel_mm: v.grid.voxel_mm,
+                    offset_mm: v.grid.offset_mm.to_array(),
+                })
+                .collect::<Vec<_>>(),
+        );
+        write(&format!("{id}/{}.cfg", exposure.id), text.as_bytes())?;
+        for v in held {
+            let lines: Vec<String> = trial
+                .frames
+                .iter()
+                .filter_map(|run| run.truth.run.phantoms.iter().find(|p| p.id == v.phantom))
+                .map(|phantom| {
+                    volume::tra_line(&volume::tra_matrix(&phantom.pose(), v.grid.offset_mm))
+                })
                 .collect();
-            if trial.is_empty() {
-                // Nothing to track (e.g. the box alone): Autoscoper refuses a trial without a
-                // volume (`Trial::validate`: "There must be at least one volume file").
+            if lines.is_empty() {
                 continue;
             }
-            let text = autoscoper::trial_cfg(
-                &run.cameras
-                    .iter()
-                    .map(|(d, _)| d.as_str())
-                    .collect::<Vec<_>>(),
-                &exposure.id,
-                &trial
-                    .iter()
-                    .map(|v| autoscoper::TrialVolume {
-                        phantom: &v.phantom,
-                        voxel_mm: v.grid.voxel_mm,
-                        offset_mm: v.grid.offset_mm.to_array(),
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            write(&format!("{id}/{}.cfg", exposure.id), text.as_bytes())?;
-            for v in trial {
-                let Some(phantom) = run.truth.run.phantoms.iter().find(|p| p.id == v.phantom)
-                else {
-                    continue;
-                };
-                let m = volume::tra_matrix(&phantom.pose(), v.grid.offset_mm);
-                write(
-                    &format!("{id}/truth/{}_{}.tra", exposure.id, v.phantom),
-                    volume::tra_line(&m).as_bytes(),
-                )?;
-            }
+            write(
+                &format!("{id}/truth/{}_{}.tra", exposure.id, v.phantom),
+                lines.concat().as_bytes(),
+            )?;
         }
     }
     Ok(())
 }
 
-fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> String {
+/// The export's README.md: what was exported, from which output, with which calibration.
+fn readme(out: &Path, options: &Options, trials: &[TrialExport], setup: &Setup) -> String {
     let dense_bright = options.dense_matter == DenseMatter::Bright;
     let invert = inverts(setup, options.dense_matter);
+    let sequences = trials.iter().any(TrialExport::is_sequence);
     let calibration = match &options.calibration_from {
         None => "the TRUE calibration (the exact source and detector poses of truth.json): the \
                  exam's known calibration"
             .to_string(),
+        Some(name) if sequences => format!(
+            "the calibration measured in each run's `{name}` (a sequence's: its first frame's)"
+        ),
         Some(name) => format!("the calibration measured in each run's `{name}`"),
     };
-    let cube = if options.target != Target::Xmalab {
-        String::new()
+    let cube = if options.target == Target::Xmalab {
+        readme_cube(trials)
     } else {
-        let with: Vec<&str> = runs
-            .iter()
-            .filter(|r| matches!(r.references, Some((_, Ok(_)))))
-            .map(|r| r.truth.run.id.as_str())
-            .collect();
-        let without: Vec<String> = runs
-            .iter()
-            .filter_map(|r| match &r.references {
-                Some((_, Err(e))) => Some(format!("  - run {}: {e}\n", r.truth.run.id)),
-                _ => None,
-            })
-            .collect();
-        format!(
-            "- XMALab's calibration object (`calibration/frame_specification.csv`, \
-             `calibration/references.ref`, for XMALab's own cube calibration) is written for {} of \
-             {} run(s). Its four reference beads are chosen by rule: visible and at least {} bead \
-             diameters from every other bead's image and from the border in every calibration \
-             view, on plates seen at least {}° from edge-on, spanning a tetrahedron of at least {} \
-             of the beads' bounding box.\n{}",
-            with.len(),
-            runs.len(),
-            reference_beads::MIN_SEPARATION_DIAMETERS,
-            reference_beads::MIN_PLATE_ANGLE_DEG,
-            reference_beads::MIN_VOLUME_FRACTION,
-            if without.is_empty() {
-                String::new()
-            } else {
-                format!("  Not written:\n{}", without.concat())
-            }
-        )
+        String::new()
+    };
+    let tra_lines = if sequences {
+        "one line per frame, in frame order (one line for a run without frames), each of 16 \
+         comma-separated values"
+    } else {
+        "one line of 16 comma-separated values"
     };
     format!(
         "# rsasim export for {program}\n\n\
-         Written by {version} from the output folder `{out}` ({n} run(s)).\n\n\
+         Written by {version} from the output folder `{out}` ({n}).\n\n\
          - Cameras (MayaCam 2.0{dlt}) hold {calibration}.\n\
          {cube}\
          - Images are the run's TIFFs with their rows flipped (bottom row first), {inv}scaled to \
@@ -949,16 +1229,16 @@ fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> S
          coordinates in these images are not rsasim's.\n\
          - Units: mm; world frame: the calibration box frame of truth.json.\n\
          {volumes}\
-         - One folder per run, since every run has its own geometry. See rsasim's manual, \
+         - One folder per run, since every run has its own geometry. {sequence}See rsasim's manual, \
          docs/src/guide/xmalab-autoscoper.md, for the steps in {program} and how to score its results with \
-         `rsasim evaluate`.\n",
+         `rsasim evaluate`.\n{partial}",
         program = match options.target {
             Target::Xmalab => "XMALab",
             Target::Autoscoper => "Autoscoper",
         },
         version = crate::output::program(),
         out = out.display(),
-        n = runs.len(),
+        n = readme_count(trials),
         dlt = if options.target == Target::Xmalab {
             " and DLT-11"
         } else {
@@ -978,7 +1258,7 @@ fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> S
                  phantom's material at {:.3} keV, 0 outside; `volumes/<phantom>.stl` is the mesh \
                  in the volume frame. The volume frame is the phantom's frame shifted by the \
                  offset each trial's `.cfg` states in a comment. `<run>/truth/<exposure>_<phantom>.tra` \
-                 holds the true pose of each volume: one line of 16 comma-separated values, the \
+                 holds the true pose of each volume: {tra_lines}, the \
                  4×4 matrix world ← volume row by row (Autoscoper's \"matrix, row\" layout). \
                  A trial is written for every exposure holding a model.\n",
                 options.voxel_mm,
@@ -987,6 +1267,89 @@ fn readme(out: &Path, options: &Options, runs: &[RunExport], setup: &Setup) -> S
         } else {
             String::new()
         },
+        sequence = if sequences { READ_ME_SEQUENCES } else { "" },
+        partial = readme_partial(trials),
+    )
+}
+
+/// What the README's first line says was exported: `4 run(s)`, or with sequences the trials
+/// and their frames.
+fn readme_count(trials: &[TrialExport]) -> String {
+    let sequences = trials.iter().filter(|t| t.is_sequence()).count();
+    if sequences == 0 {
+        return format!("{} run(s)", trials.len());
+    }
+    let frames: usize = trials
+        .iter()
+        .filter(|t| t.is_sequence())
+        .map(|t| t.frames.len())
+        .sum();
+    format!(
+        "{} trial(s): {sequences} sequence(s) of {frames} frame(s) in all, {} run(s) without frames",
+        trials.len(),
+        trials.len() - sequences
+    )
+}
+
+/// The README's words on the layout of a sequence's trial.
+const READ_ME_SEQUENCES: &str = "A sequence is one folder, one trial, named by its sequence id \
+     (`n0-r00` for the runs `n0-r00-f0000`, `n0-r00-f0001`, …): its frames share one geometry, so \
+     its cameras, models and trial files are written once; its images are \
+     `images/<exposure>-<detector>/<exposure>-<detector>.<frame index + 1>.tif`, zero-padded to \
+     one width (at least 4 digits), so that the name order XMALab and Autoscoper read them in is \
+     frame order; the truth `.tra` holds one line per frame, as Autoscoper saves a tracking. Save \
+     each program's results for a sequence into its folder: `rsasim evaluate` reads line (or \
+     row) k as the trial's k-th frame. ";
+
+/// The README's list of the sequences of which the output holds only some frames (a shard's).
+fn readme_partial(trials: &[TrialExport]) -> String {
+    let partial: Vec<String> = trials
+        .iter()
+        .filter_map(partial_sequence)
+        .map(|n| format!("  - {n}\n"))
+        .collect();
+    if partial.is_empty() {
+        return String::new();
+    }
+    format!(
+        "\nThis output holds only some frames of these sequences (a shard's), so their trials \
+         hold only those:\n{}",
+        partial.concat()
+    )
+}
+
+/// The README's paragraph on XMALab's calibration object: where it is written, the rule, and
+/// why it is not where it is not.
+fn readme_cube(trials: &[TrialExport]) -> String {
+    let with = trials
+        .iter()
+        .filter(|r| matches!(r.references, Some((_, Ok(_)))))
+        .count();
+    let without: Vec<String> = trials
+        .iter()
+        .filter_map(|r| match &r.references {
+            Some((_, Err(e))) => Some(format!("  - {}: {e}\n", r.label())),
+            _ => None,
+        })
+        .collect();
+    format!(
+        "- XMALab's calibration object (`calibration/frame_specification.csv`, \
+         `calibration/references.ref`, for XMALab's own cube calibration) is written for {} of \
+         {} {}. Its four reference beads are chosen by rule: visible and at least {} bead \
+         diameters from every other bead's image and from the border in every calibration \
+         view, on plates seen at least {}° from edge-on, spanning a tetrahedron of at least {} \
+         of the beads' bounding box.\n{}",
+        with,
+        trials.len(),
+        trials_word(trials),
+        reference_beads::MIN_SEPARATION_DIAMETERS,
+        reference_beads::MIN_PLATE_ANGLE_DEG,
+        reference_beads::MIN_VOLUME_FRACTION,
+        if without.is_empty() {
+            String::new()
+        } else {
+            format!("  Not written:\n{}", without.concat())
+        }
     )
 }
 

@@ -5,7 +5,7 @@
 //! in MayaCam, DLT-11 and OpenCV form ([`camera_input`], [`camera_files`]). The export's
 //! Autoscoper volumes and `.tra` truth are [`volume`]'s, and Autoscoper's tracking results are read
 //! back by [`autoscoper_tracking`]; XMALab's reference beads are chosen by
-//! [`reference_beads`].
+//! [`reference_beads`]. A sequence's frames are one trial of each ([`trials`]).
 
 pub mod autoscoper;
 pub mod autoscoper_tracking;
@@ -17,6 +17,7 @@ pub mod export;
 pub mod failure;
 pub mod mesh_text;
 pub mod reference_beads;
+pub mod trials;
 pub mod volume;
 pub mod xmalab;
 pub mod xmalab_points2d;

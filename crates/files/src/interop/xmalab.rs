@@ -21,6 +21,9 @@
 //!   marker `<name>_cam<j>_X,<name>_cam<j>_Y` for cameras j = 1… (marker-major); pixels of the
 //!   exported (flipped) images, 0-based and y down unless the user states XMALab's other
 //!   options ([`super::xmalab_points2d`]). They are triangulated with the exported true cameras.
+//!
+//! A run's trial has one frame, so its export one data row; a sequence's trial ([`super::trials`])
+//! one data row per frame, row k for frame k ([`read_export_frames`]).
 
 use std::path::Path;
 
@@ -131,6 +134,27 @@ pub fn read_export(
     truth: &Truth,
     pixels: PixelOptions,
 ) -> Result<Measured, Vec<Diagnostic>> {
+    let mut frames = read_export_frames(file, &[truth], pixels)?;
+    Ok(frames.remove(0))
+}
+
+/// Reads an XMALab export of one trial ([`super::trials`]): `frames` are the trial's runs in
+/// frame order (one for a run without a frame). XMALab writes one data row per frame of its
+/// trial, frame 1 first (`Trial::saveRigidBodyTransformations`, `Trial::save3dPoints`,
+/// `Trial::save2dPoints`, src/core/Trial.cpp), so row k is frame k; a `Frame` column, XMALab's
+/// 1-based frame number in the trial, is honoured in a sequence: row `Frame = k` is the trial's
+/// k-th frame, each frame once. A file with another number of data rows is an error naming
+/// its first row too many, or the line after its last (XMALab's "from"/"to" export of part of a
+/// trial is refused: export every frame, NaN where untracked). Returns one result per frame, in
+/// the same order.
+pub fn read_export_frames(
+    file: &Path,
+    frames: &[&Truth],
+    pixels: PixelOptions,
+) -> Result<Vec<Measured>, Vec<Diagnostic>> {
+    let Some(first) = frames.first() else {
+        return Ok(Vec::new());
+    };
     let bytes =
         crate::output::received::read_in_folder(file, crate::output::received::MAX_TABLE_BYTES)
             .map_err(|d| vec![d])?;
@@ -159,328 +183,469 @@ pub fn read_export(
             ),
         ]);
     };
-    // `lead`: the cells every row starts with that name no value (`Frame`, the offset columns).
-    let offsets = offset_columns(header, truth.run.detectors.len())
+    let layout = Layout::of_header(header, first, pixels)
         .map_err(|(column, message, help)| at(header_line, column, message, &help))?;
-    let (lead, names) = match offsets {
-        Some(o) => {
-            let skipped = header[..o.bytes].chars().count();
-            (o.count, cells_from(&header[o.bytes..], skipped + 1))
-        }
-        None => {
-            let mut head = cells(header);
-            let frame_column = head.first().is_some_and(|c| c.text == "Frame");
-            (
-                usize::from(frame_column),
-                head.split_off(usize::from(frame_column)),
-            )
-        }
-    };
-    let names = names.as_slice();
-    let rigid = names
-        .first()
-        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_R11"));
-    let planar = names
-        .first()
-        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_cam1_X"));
-    let points = names
-        .first()
-        .is_some_and(|c| without_filter_suffix(c.text).ends_with("_X"));
-    if (offsets.is_some() || pixels != PixelOptions::default()) && !planar {
-        let c = names.first().map_or(1, |c| c.column);
-        return Err(at(
-            header_line,
-            c,
-            format!(
-                "{} XMALab's 2D points, but the header `{}` is not `<marker>_cam1_X,…`",
-                if offsets.is_some() {
-                    "offset columns belong to".to_string()
-                } else {
-                    format!("{} are options of", pixels.flags())
-                },
-                cut(header)
-            ),
-            "give XMALab's 2D points export, or leave out the --xmalab-2d options for its other exports",
-        ));
-    }
-    if !rigid && !points {
-        let c = names.first().map_or(1, |c| c.column);
-        return Err(at(
-            header_line,
-            c,
-            format!(
-                "the header `{}` is none of XMALab's rigid-body transformations (`<body>_R11,…`), 3D points (`<marker>_X,…`) or 2D points (`<marker>_cam1_X,…`)",
-                cut(header)
-            ),
-            "export from XMALab with \"header row\" checked, all bodies (or markers) in one file",
-        ));
-    }
     let data: Vec<(usize, &str)> = lines[1..].to_vec();
-    if data.len() != 1 {
-        let (line, _) = data.get(1).copied().unwrap_or((header_line, ""));
+    let runs: Vec<&crate::expand::Run> = frames.iter().map(|t| &t.run).collect();
+    if let Some(problem) = super::trials::frame_count_problem(data.len(), &runs, "data row") {
+        let line = data
+            .get(frames.len())
+            .map_or_else(|| data.last().map_or(header_line, |l| l.0 + 1), |r| r.0);
         return Err(at(
             line,
             1,
-            format!(
-                "the file holds {} frame(s); an exported rsasim run is a one-frame trial",
-                data.len()
-            ),
-            "save the export of each run's trial into that run's folder (one data row per file)",
+            problem,
+            if first.run.frame.is_some() {
+                "export every frame of the sequence's trial (XMALab's export dialog: from 1 to the last frame; NaN where untracked) into the sequence's folder, all bodies (or markers) in one file"
+            } else {
+                "save the export of each run's trial into that run's folder (one data row per file)"
+            },
         ));
     }
-    let (row_line, row) = data[0];
-    let values = cells(row);
-    if values.len() != lead + names.len() {
-        return Err(at(
-            row_line,
-            values.last().map_or(1, |c| c.column),
-            format!(
-                "the row has {} values but the header {} columns{}",
-                values.len(),
-                lead + names.len(),
-                if offsets.is_some() {
-                    format!(" ({lead} offset columns and {})", names.len())
-                } else {
-                    String::new()
-                }
-            ),
-            "every row needs as many values as the header",
-        ));
-    }
-    if offsets.is_some()
-        && let Some(c) = values[..lead]
-            .iter()
-            .find(|c| c.text.parse::<f64>().is_err())
-    {
-        return Err(at(
-            row_line,
-            c.column,
-            format!("offset column `{}` is not a number", cut(c.text)),
-            "XMALab writes 0 in every offset column",
-        ));
-    }
-    let mut numbers = Vec::with_capacity(names.len());
-    for c in &values[lead..] {
-        let x = if c.text.eq_ignore_ascii_case("nan") {
-            f64::NAN
-        } else {
-            c.text
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        row_line,
-                        c.column,
-                        format!("`{}` is not a number", cut(c.text)),
-                        "XMALab writes decimal numbers or NaN",
-                    )
-                })?
-        };
-        numbers.push(x);
-    }
-    let software = format!(
-        "XMALab ({} {})",
-        if rigid {
-            "rigid-body transformations"
-        } else if planar {
-            "2D points"
-        } else {
-            "3D points"
-        },
-        file.file_name().unwrap_or_default().to_string_lossy()
-    );
-    let mut measured = Measured {
-        format: MEASURED_FORMAT.into(),
-        run: truth.run.id.clone(),
-        software,
-        methods: None,
-        sources: Vec::new(),
-        detectors: Vec::new(),
-        phantoms: Vec::new(),
-    };
-    let phantom_ids: Vec<&str> = truth.run.phantoms.iter().map(|p| p.id.as_str()).collect();
-    if rigid {
-        if names.len() % 16 != 0 {
+    let mut out: Vec<Option<Measured>> = vec![None; frames.len()];
+    for (k, &(row_line, row)) in data.iter().enumerate() {
+        let values = cells(row);
+        if values.len() != layout.lead + layout.names.len() {
             return Err(at(
-                header_line,
-                names.last().map_or(1, |c| c.column),
+                row_line,
+                values.last().map_or(1, |c| c.column),
                 format!(
-                    "{} transformation columns is not a multiple of 16",
-                    names.len()
+                    "the row has {} values but the header {} columns{}",
+                    values.len(),
+                    layout.lead + layout.names.len(),
+                    if layout.offsets {
+                        format!(
+                            " ({} offset columns and {})",
+                            layout.lead,
+                            layout.names.len()
+                        )
+                    } else {
+                        String::new()
+                    }
                 ),
-                "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
+                "every row needs as many values as the header",
             ));
         }
-        let mut bodies = Vec::new();
-        for group in names.chunks(16) {
-            let first = without_filter_suffix(group[0].text);
-            let Some(body) = first.strip_suffix("_R11") else {
-                return Err(at(
-                    header_line,
-                    group[0].column,
-                    format!("column `{}` should be `<body>_R11`", cut(group[0].text)),
-                    "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1",
-                ));
-            };
-            for (c, suffix) in group.iter().zip(BODY_COLUMNS) {
-                if without_filter_suffix(c.text) != format!("{body}_{suffix}") {
-                    return Err(at(
-                        header_line,
-                        c.column,
-                        format!("column `{}` should be `{body}_{suffix}`", cut(c.text)),
-                        "the 16 columns of a body are _R11,_R12,_R13,_01,_R21,_R22,_R23,_02,_R31,_R32,_R33,_03,_TX,_TY,_TZ,_1",
-                    ));
-                }
-            }
-            if !phantom_ids.contains(&body) {
-                return Err(at(
-                    header_line,
-                    group[0].column,
-                    format!(
-                        "rigid body `{}` is not a phantom of run {}",
-                        cut(body),
-                        truth.run.id
-                    ),
-                    &format!(
-                        "name each rigid body in XMALab after its phantom: {}",
-                        phantom_ids.join(", ")
-                    ),
-                ));
-            }
-            bodies.push(body);
-        }
-        for (b, body) in bodies.into_iter().enumerate() {
-            let m = &numbers[b * 16..b * 16 + 16];
-            if m.iter().any(|x| x.is_nan()) {
-                continue; // not tracked in this frame
-            }
-            let bottom = [m[3], m[7], m[11], m[15]];
-            if (bottom[0].abs() + bottom[1].abs() + bottom[2].abs() + (bottom[3] - 1.0).abs())
-                > 1e-6
-            {
-                let c = &values[lead + b * 16 + 3];
-                return Err(at(
-                    row_line,
-                    c.column,
-                    format!(
-                        "body `{body}`: _01, _02, _03 must be 0 and _1 must be 1, not {bottom:?}"
-                    ),
-                    "give the file as XMALab wrote it",
-                ));
-            }
-            // R (rows) maps world to body; rsasim's rotation has the body axes as columns,
-            // which are R's rows: rotation = Rᵀ.
-            let world_to_body = [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]];
-            let rotation = [0, 1, 2].map(|i| [0, 1, 2].map(|j| world_to_body[j][i]));
-            measured.phantoms.push(MeasuredPose {
-                id: body.to_string(),
-                position_mm: [m[12], m[13], m[14]],
-                rotation: Some(rotation),
-                markers: Vec::new(),
-                quality: None,
-            });
-        }
-        return Ok(measured);
+        let index = if layout.frame_column && first.run.frame.is_some() {
+            frame_of_row(&values[0], frames.len(), &out)
+                .map_err(|(message, help)| at(row_line, values[0].column, message, &help))?
+        } else {
+            k
+        };
+        let truth = frames[index];
+        let measured = layout
+            .measured(file, truth, &values, pixels)
+            .map_err(|(column, message, help)| at(row_line, column, message, help))?;
+        out[index] = Some(measured);
     }
-    // Points: every marker named after a bead; 2-D points are triangulated with the exported
-    // (true) cameras.
-    let cameras = if planar {
-        super::camera::run_cameras(&truth.run).map_err(|e| vec![Diagnostic::file_error(file, e)])?
-    } else {
-        Vec::new()
+    Ok(out.into_iter().flatten().collect())
+}
+
+/// The trial frame (0-based) a row's `Frame` cell names: XMALab's 1-based frame number, within
+/// the trial's `count` frames and not yet given (`done`); otherwise a message and a help.
+fn frame_of_row(
+    cell: &Cell<'_>,
+    count: usize,
+    done: &[Option<Measured>],
+) -> Result<usize, (String, String)> {
+    let frame = cell
+        .text
+        .parse::<usize>()
+        .ok()
+        .filter(|f| (1..=count).contains(f));
+    let Some(f) = frame else {
+        return Err((
+            format!(
+                "`Frame` is `{}`, not a frame of the trial (1 to {count})",
+                cut(cell.text)
+            ),
+            "XMALab numbers the frames of a trial from 1; export every frame of the sequence's trial".into(),
+        ));
     };
-    let per_marker = if planar { 2 * cameras.len() } else { 3 };
+    if done.get(f - 1).is_some_and(Option::is_some) {
+        return Err((
+            format!("frame {f} appears twice"),
+            "XMALab writes each frame once".into(),
+        ));
+    }
+    Ok(f - 1)
+}
+
+/// What a header of XMALab's exports says: the leading cells that name no value (`Frame`, the
+/// offset columns), the value columns and which export it is.
+struct Layout<'a> {
+    /// Cells every row starts with that name no value.
+    lead: usize,
+    /// Whether those are XMALab's 2-D offset columns.
+    offsets: bool,
+    /// Whether the first cell is `Frame`.
+    frame_column: bool,
+    /// The value columns.
+    names: Vec<Cell<'a>>,
+    /// Which export.
+    kind: Kind,
+}
+
+/// The three exports of XMALab that `evaluate` reads.
+enum Kind {
+    /// Rigid-body transformations: the phantom id of each body, in the header's order.
+    Rigid(Vec<String>),
+    /// 3-D points (or 2-D points, `planar`): the (phantom, bead) indices of each marker, with
+    /// its columns per marker.
+    Points {
+        planar: bool,
+        per_marker: usize,
+        markers: Vec<(usize, usize)>,
+    },
+}
+
+/// A refusal at a 1-based character column of a line: the column, the message and a help.
+type ColumnError = (usize, String, String);
+
+impl<'a> Layout<'a> {
+    /// Reads the header: its leading cells and which export it is, every column name checked
+    /// against `truth`'s phantoms and beads.
+    fn of_header(
+        header: &'a str,
+        truth: &Truth,
+        pixels: PixelOptions,
+    ) -> Result<Self, ColumnError> {
+        // `lead`: the cells every row starts with that name no value (`Frame`, the offset columns).
+        let offsets = offset_columns(header, truth.run.detectors.len())?;
+        let (lead, frame_column, names) = match offsets {
+            Some(o) => {
+                let skipped = header[..o.bytes].chars().count();
+                (o.count, false, cells_from(&header[o.bytes..], skipped + 1))
+            }
+            None => {
+                let mut head = cells(header);
+                let frame_column = head.first().is_some_and(|c| c.text == "Frame");
+                let lead = usize::from(frame_column);
+                (lead, frame_column, head.split_off(lead))
+            }
+        };
+        let first_name = names.first().map(|c| without_filter_suffix(c.text));
+        let rigid = first_name.is_some_and(|n| n.ends_with("_R11"));
+        let planar = first_name.is_some_and(|n| n.ends_with("_cam1_X"));
+        let points = first_name.is_some_and(|n| n.ends_with("_X"));
+        let first_column = names.first().map_or(1, |c| c.column);
+        if (offsets.is_some() || pixels != PixelOptions::default()) && !planar {
+            return Err((
+                first_column,
+                format!(
+                    "{} XMALab's 2D points, but the header `{}` is not `<marker>_cam1_X,…`",
+                    if offsets.is_some() {
+                        "offset columns belong to".to_string()
+                    } else {
+                        format!("{} are options of", pixels.flags())
+                    },
+                    cut(header)
+                ),
+                "give XMALab's 2D points export, or leave out the --xmalab-2d options for its other exports".into(),
+            ));
+        }
+        let kind = if rigid {
+            Kind::Rigid(rigid_bodies(&names, truth)?)
+        } else if points {
+            let per_marker = if planar {
+                2 * truth.run.detectors.len()
+            } else {
+                3
+            };
+            Kind::Points {
+                planar,
+                per_marker,
+                markers: point_markers(&names, truth, planar, per_marker)?,
+            }
+        } else {
+            return Err((
+                first_column,
+                format!(
+                    "the header `{}` is none of XMALab's rigid-body transformations (`<body>_R11,…`), 3D points (`<marker>_X,…`) or 2D points (`<marker>_cam1_X,…`)",
+                    cut(header)
+                ),
+                "export from XMALab with \"header row\" checked, all bodies (or markers) in one file".into(),
+            ));
+        };
+        Ok(Layout {
+            lead,
+            offsets: offsets.is_some(),
+            frame_column,
+            names,
+            kind,
+        })
+    }
+
+    /// The export's name in XMALab's menu, for the results' software field.
+    fn export_name(&self) -> &'static str {
+        match &self.kind {
+            Kind::Rigid(_) => "rigid-body transformations",
+            Kind::Points { planar: true, .. } => "2D points",
+            Kind::Points { .. } => "3D points",
+        }
+    }
+
+    /// One frame's results from one data row's `values` (as many as the header's columns).
+    fn measured(
+        &self,
+        file: &Path,
+        truth: &Truth,
+        values: &[Cell<'_>],
+        pixels: PixelOptions,
+    ) -> Result<Measured, (usize, String, &'static str)> {
+        if self.offsets
+            && let Some(c) = values[..self.lead]
+                .iter()
+                .find(|c| c.text.parse::<f64>().is_err())
+        {
+            return Err((
+                c.column,
+                format!("offset column `{}` is not a number", cut(c.text)),
+                "XMALab writes 0 in every offset column",
+            ));
+        }
+        let mut numbers = Vec::with_capacity(self.names.len());
+        for c in &values[self.lead..] {
+            let x = if c.text.eq_ignore_ascii_case("nan") {
+                f64::NAN
+            } else {
+                c.text
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        (
+                            c.column,
+                            format!("`{}` is not a number", cut(c.text)),
+                            "XMALab writes decimal numbers or NaN",
+                        )
+                    })?
+            };
+            numbers.push(x);
+        }
+        let mut measured = Measured {
+            format: MEASURED_FORMAT.into(),
+            run: truth.run.id.clone(),
+            software: format!(
+                "XMALab ({} {})",
+                self.export_name(),
+                file.file_name().unwrap_or_default().to_string_lossy()
+            ),
+            methods: None,
+            sources: Vec::new(),
+            detectors: Vec::new(),
+            phantoms: Vec::new(),
+        };
+        measured.phantoms = match &self.kind {
+            Kind::Rigid(bodies) => rigid_poses(bodies, &numbers, &values[self.lead..])?,
+            Kind::Points {
+                planar,
+                per_marker,
+                markers,
+            } => {
+                let cameras = if *planar {
+                    super::camera::run_cameras(&truth.run).map_err(|e| {
+                        (
+                            1,
+                            e,
+                            "2D points are triangulated with the run's true cameras",
+                        )
+                    })?
+                } else {
+                    Vec::new()
+                };
+                let found = markers
+                    .iter()
+                    .zip(numbers.chunks(*per_marker))
+                    .filter_map(|(&(pi, mi), v)| {
+                        let point = if *planar {
+                            triangulated(&cameras, v, pixels)
+                        } else {
+                            DVec3::new(v[0], v[1], v[2])
+                        };
+                        point.is_finite().then_some((pi, mi, point))
+                    })
+                    .collect::<Vec<_>>();
+                fit_phantoms(truth, &found)
+            }
+        };
+        Ok(measured)
+    }
+}
+
+/// Refuses value columns `names` that do not come in groups of `per` (`what` columns), at the
+/// last column.
+fn check_groups(names: &[Cell<'_>], per: usize, what: &str, help: &str) -> Result<(), ColumnError> {
+    if per > 0 && names.len().is_multiple_of(per) {
+        return Ok(());
+    }
+    Err((
+        names.last().map_or(1, |c| c.column),
+        format!("{} {what} columns is not a multiple of {per}", names.len()),
+        help.to_string(),
+    ))
+}
+
+/// The phantom id of each rigid body of a header's value columns `names`: 16 columns a body, in
+/// XMALab's order, each body a phantom of `truth`.
+fn rigid_bodies(names: &[Cell<'_>], truth: &Truth) -> Result<Vec<String>, ColumnError> {
+    let phantom_ids: Vec<&str> = truth.run.phantoms.iter().map(|p| p.id.as_str()).collect();
+    let layout_help =
+        "each rigid body has 16 columns: _R11,_R12,_R13,_01,…,_TX,_TY,_TZ,_1".to_string();
+    check_groups(names, 16, "transformation", &layout_help)?;
+    let mut bodies = Vec::new();
+    for group in names.chunks(16) {
+        let first = without_filter_suffix(group[0].text);
+        let Some(body) = first.strip_suffix("_R11") else {
+            return Err((
+                group[0].column,
+                format!("column `{}` should be `<body>_R11`", cut(group[0].text)),
+                layout_help,
+            ));
+        };
+        for (c, suffix) in group.iter().zip(BODY_COLUMNS) {
+            if without_filter_suffix(c.text) != format!("{body}_{suffix}") {
+                return Err((
+                    c.column,
+                    format!("column `{}` should be `{body}_{suffix}`", cut(c.text)),
+                    "the 16 columns of a body are _R11,_R12,_R13,_01,_R21,_R22,_R23,_02,_R31,_R32,_R33,_03,_TX,_TY,_TZ,_1".into(),
+                ));
+            }
+        }
+        if !phantom_ids.contains(&body) {
+            return Err((
+                group[0].column,
+                format!(
+                    "rigid body `{}` is not a phantom of run {}",
+                    cut(body),
+                    truth.run.id
+                ),
+                format!(
+                    "name each rigid body in XMALab after its phantom: {}",
+                    phantom_ids.join(", ")
+                ),
+            ));
+        }
+        bodies.push(body.to_string());
+    }
+    Ok(bodies)
+}
+
+/// The poses of one row's rigid bodies from its `numbers` (16 a body; `values`, the row's value
+/// cells, locate errors). A body with a `NaN` was not tracked in this frame.
+fn rigid_poses(
+    bodies: &[String],
+    numbers: &[f64],
+    values: &[Cell<'_>],
+) -> Result<Vec<MeasuredPose>, (usize, String, &'static str)> {
+    let mut out = Vec::new();
+    for (b, body) in bodies.iter().enumerate() {
+        let m = &numbers[b * 16..b * 16 + 16];
+        if m.iter().any(|x| x.is_nan()) {
+            continue; // not tracked in this frame
+        }
+        let bottom = [m[3], m[7], m[11], m[15]];
+        if (bottom[0].abs() + bottom[1].abs() + bottom[2].abs() + (bottom[3] - 1.0).abs()) > 1e-6 {
+            return Err((
+                values[b * 16 + 3].column,
+                format!("body `{body}`: _01, _02, _03 must be 0 and _1 must be 1, not {bottom:?}"),
+                "give the file as XMALab wrote it",
+            ));
+        }
+        // R (rows) maps world to body; rsasim's rotation has the body axes as columns,
+        // which are R's rows: rotation = Rᵀ.
+        let world_to_body = [[m[0], m[1], m[2]], [m[4], m[5], m[6]], [m[8], m[9], m[10]]];
+        let rotation = [0, 1, 2].map(|i| [0, 1, 2].map(|j| world_to_body[j][i]));
+        out.push(MeasuredPose {
+            id: body.clone(),
+            position_mm: [m[12], m[13], m[14]],
+            rotation: Some(rotation),
+            markers: Vec::new(),
+            quality: None,
+        });
+    }
+    Ok(out)
+}
+
+/// The (phantom, bead) indices of each marker of a header's point columns `names`
+/// (`per_marker` columns a marker: `_X,_Y,_Z`, or `_cam<j>_X,_cam<j>_Y` per camera when
+/// `planar`), each a bead of `truth` named once.
+fn point_markers(
+    names: &[Cell<'_>],
+    truth: &Truth,
+    planar: bool,
+    per_marker: usize,
+) -> Result<Vec<(usize, usize)>, ColumnError> {
     let suffixes: Vec<String> = if planar {
-        (1..=cameras.len())
+        (1..=per_marker / 2)
             .flat_map(|j| [format!("_cam{j}_X"), format!("_cam{j}_Y")])
             .collect()
     } else {
         vec!["_X".into(), "_Y".into(), "_Z".into()]
     };
-    if per_marker == 0 || names.len() % per_marker != 0 {
-        return Err(at(
-            header_line,
-            names.last().map_or(1, |c| c.column),
-            format!(
-                "{} point columns is not a multiple of {per_marker}",
-                names.len()
-            ),
-            &format!(
-                "each marker has {per_marker} columns: <name>{}",
-                suffixes.join(",<name>")
-            ),
-        ));
-    }
-    let mut found: Vec<(usize, usize, DVec3)> = Vec::new(); // (phantom index, marker index, point)
+    let layout_help = format!(
+        "each marker has {per_marker} columns: <name>{}",
+        suffixes.join(",<name>")
+    );
+    check_groups(names, per_marker, "point", &layout_help)?;
     let mut seen: Vec<(usize, usize)> = Vec::new();
-    for (k, group) in names.chunks(per_marker).enumerate() {
+    for group in names.chunks(per_marker) {
         let first = without_filter_suffix(group[0].text);
         let Some(name) = first.strip_suffix(suffixes[0].as_str()) else {
-            return Err(at(
-                header_line,
+            return Err((
                 group[0].column,
                 format!(
                     "column `{}` should be `<marker>{}`",
                     cut(group[0].text),
                     suffixes[0]
                 ),
-                &format!(
-                    "each marker has {per_marker} columns: <name>{}",
-                    suffixes.join(",<name>")
-                ),
+                layout_help,
             ));
         };
         for (c, suffix) in group.iter().zip(&suffixes) {
             if without_filter_suffix(c.text) != format!("{name}{suffix}") {
-                return Err(at(
-                    header_line,
+                return Err((
                     c.column,
                     format!("column `{}` should be `{name}{suffix}`", cut(c.text)),
-                    &format!(
-                        "each marker has {per_marker} columns: <name>{}",
-                        suffixes.join(",<name>")
-                    ),
+                    layout_help,
                 ));
             }
         }
-        let (pi, mi) = match_bead(truth, name)
-            .map_err(|(message, help)| at(header_line, group[0].column, message, &help))?;
+        let (pi, mi) =
+            match_bead(truth, name).map_err(|(message, help)| (group[0].column, message, help))?;
         if let Some(before) = seen.iter().position(|s| *s == (pi, mi)) {
-            return Err(at(
-                header_line,
+            return Err((
                 group[0].column,
                 format!(
                     "marker `{}` names the same bead as marker {} of the header",
                     cut(name),
                     before + 1
                 ),
-                "export each bead once",
+                "export each bead once".into(),
             ));
         }
         seen.push((pi, mi));
-        let v = &numbers[k * per_marker..(k + 1) * per_marker];
-        let point = if planar {
-            let rays: Vec<(DVec3, DVec3)> = cameras
-                .iter()
-                .zip(v.chunks(2))
-                .filter(|(_, xy)| !xy[0].is_nan() && !xy[1].is_nan())
-                .map(|((source, cam), xy)| {
-                    let xy = pixels.to_xmalab([xy[0], xy[1]], cam.size[1]);
-                    (*source, cam.ray_direction(xy))
-                })
-                .collect();
-            let (p, _) = triangulate(&rays);
-            p
-        } else {
-            DVec3::new(v[0], v[1], v[2])
-        };
-        if point.is_finite() {
-            found.push((pi, mi, point));
-        }
     }
-    measured.phantoms = fit_phantoms(truth, &found);
-    Ok(measured)
+    Ok(seen)
+}
+
+/// A bead's 2-D points `v` (x, y per camera; NaN where not seen) triangulated with the true
+/// `cameras`; NaN (or infinite) when fewer than two see it.
+fn triangulated(
+    cameras: &[(DVec3, super::camera::PinholeCamera)],
+    v: &[f64],
+    pixels: PixelOptions,
+) -> DVec3 {
+    let rays: Vec<(DVec3, DVec3)> = cameras
+        .iter()
+        .zip(v.chunks(2))
+        .filter(|(_, xy)| !xy[0].is_nan() && !xy[1].is_nan())
+        .map(|((source, cam), xy)| {
+            let xy = pixels.to_xmalab([xy[0], xy[1]], cam.size[1]);
+            (*source, cam.ray_direction(xy))
+        })
+        .collect();
+    triangulate(&rays).0
 }
 
 /// The (phantom, bead) indices a marker name designates: a bead id unique over the run's

@@ -147,6 +147,9 @@ pub fn check_truth_names(
             "rsasim names every run folder after its run id: this truth was moved or edited",
         ));
     }
+    if let Some(frame) = &truth.run.frame {
+        check_frame(file, &truth.run.id, frame).map_err(|d| *d)?;
+    }
     let groups: [(&str, Vec<&str>); 4] = [
         (
             "sources[].id",
@@ -193,6 +196,45 @@ pub fn check_truth_names(
                 ),
             ));
         }
+    }
+    Ok(())
+}
+
+/// A frame's place in its sequence, checked: the sequence id a plain name (it names the
+/// sequence's folder in an export), the index below the count, and the run id the one rsasim
+/// gives that frame (`crate::expand::sequence::frame_run_id`), so that no two run folders claim
+/// one frame of a sequence.
+fn check_frame(
+    file: &std::path::Path,
+    run_id: &str,
+    frame: &crate::expand::FrameState,
+) -> Result<(), Box<crate::diagnostic::Diagnostic>> {
+    use crate::diagnostic::{Diagnostic, cut};
+    super::received::check_name(file, "frame.sequence", &frame.sequence).map_err(Box::new)?;
+    if frame.index >= frame.count {
+        return Err(Box::new(Diagnostic::file_error(
+            file,
+            format!(
+                "`frame.index` is {}, but `frame.count` is {}: frames are numbered from 0",
+                frame.index, frame.count
+            ),
+        )));
+    }
+    let id = crate::expand::sequence::frame_run_id(&frame.sequence, frame.index, frame.count);
+    if id != run_id {
+        return Err(Box::new(
+            Diagnostic::file_error(
+                file,
+                format!(
+                    "`id` is {:?}, but frame {} of sequence {:?} ({} frames) is run {id:?}",
+                    cut(run_id),
+                    frame.index,
+                    cut(&frame.sequence),
+                    frame.count
+                ),
+            )
+            .with_help("rsasim names a frame's run <sequence>-f<index>: this truth was edited"),
+        ));
     }
     Ok(())
 }
