@@ -311,8 +311,8 @@ def cmd_attenuation_speed(args):
         rows.append(f"| {t['what']} | {t['ours_ms']:.1f} ms | {'—' if g is None else f'{g:.0f} ms'} | {ratio} | {target} |")
     write(args, "attenuation-speed.md", "bench/printed.py attenuation-speed" + (f" --venv {args.venv}" if args.venv else ""),
           "\n".join(rows), binary, load_start=start,
-          note="from `bench/attenuation.sh` (medians of 5 after a warm-up, bench/results/attenuation/); "
-               f"peer: {summary.get('machine', '')}")
+          note="from `bench/attenuation.sh` (medians of 5 after a warm-up; its summary_attenuation.json "
+               "in bench/results/attenuation/); gVXR on the same machine")
 
 
 def cmd_first_run(args):
