@@ -118,7 +118,8 @@ fn cell(t: &Table, level: usize, group: &str, column: &str) -> Cell {
     panic!("no column {group}/{column} in {}", t.id)
 }
 
-fn options() -> Options {
+/// `rsasim evaluate`'s defaults, reading `measured.json` in every run folder.
+pub(crate) fn options() -> Options {
     Options {
         measured: MeasuredSource::PerRun("measured.json".into()),
         confidence: Confidence::default(),

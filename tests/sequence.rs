@@ -491,15 +491,7 @@ fn evaluate_scores_a_sequence_frame_by_frame_against_errors_made_by_hand() {
         )
         .unwrap();
     }
-    let options = Options {
-        measured: MeasuredSource::PerRun("measured.json".into()),
-        confidence: Confidence::default(),
-        mtpm_threshold_mm: rsasim::evaluate::DEFAULT_MTPM_THRESHOLD_MM,
-        study: Default::default(),
-        xmalab_2d: Default::default(),
-        source_truth: Default::default(),
-    };
-    let report = evaluate(&out, &options).unwrap_or_else(|e| panic!("{e:?}"));
+    let report = evaluate(&out, &crate::evaluate::options()).unwrap_or_else(|e| panic!("{e:?}"));
     let q = report.sequence.as_ref().expect("a sequence section");
     assert_eq!(q.frames, 4);
     let [level] = q.levels.as_slice() else {
