@@ -955,17 +955,7 @@ fn sources_are_scored_against_the_geometric_or_the_effective_source() {
             &format!("\"{}/scenarios/models/", common::root().display()),
         );
     let tmp = tempfile::tempdir().unwrap();
-    let scenario = tmp.path().join("spot.toml");
-    std::fs::write(&scenario, text).unwrap();
-    let out = tmp.path().join("out");
-    let models = common::root().join("scenarios/models");
-    common::rsasim_ok(&[
-        scenario.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--allow-dir",
-        models.to_str().unwrap(),
-    ]);
+    let out = common::run_scenario_text(tmp.path(), "spot", &text);
     for (dir, truth) in truths(&out) {
         let mut m = measured_with_known_errors(&truth, 0);
         for s in &mut m.sources {

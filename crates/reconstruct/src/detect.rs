@@ -42,6 +42,20 @@ pub fn blobs(pixels: &[u16], width: usize, on: u16) -> Vec<Blob> {
 /// [`blobs`] with the label image: `labels[k]` is 1 + the index of pixel `k`'s blob, or 0 for a
 /// pixel that is not `on`.
 pub fn components(pixels: &[u16], width: usize, on: u16) -> (Vec<u32>, Vec<Blob>) {
+    components_where(pixels, width, |v| v == on)
+}
+
+/// [`components`] of the pixels at `min` or above.
+pub fn components_at_least(pixels: &[u16], width: usize, min: u16) -> (Vec<u32>, Vec<Blob>) {
+    components_where(pixels, width, |v| v >= min)
+}
+
+/// The 8-connected components of the pixels whose value `on` accepts, with the label image.
+fn components_where(
+    pixels: &[u16],
+    width: usize,
+    on: impl Fn(u16) -> bool,
+) -> (Vec<u32>, Vec<Blob>) {
     if width == 0 {
         return (vec![0; pixels.len()], Vec::new());
     }
@@ -50,7 +64,7 @@ pub fn components(pixels: &[u16], width: usize, on: u16) -> (Vec<u32>, Vec<Blob>
     let mut out = Vec::new();
     let mut stack = Vec::new();
     for start in 0..pixels.len() {
-        if pixels[start] != on || label[start] != 0 {
+        if !on(pixels[start]) || label[start] != 0 {
             continue;
         }
         let id = out.len() as u32 + 1;
@@ -76,7 +90,7 @@ pub fn components(pixels: &[u16], width: usize, on: u16) -> (Vec<u32>, Vec<Blob>
                         continue;
                     }
                     let q = y as usize * width + x as usize;
-                    if pixels[q] == on && label[q] == 0 {
+                    if on(pixels[q]) && label[q] == 0 {
                         label[q] = id;
                         stack.push(q);
                     }

@@ -10,6 +10,7 @@ use rsasim_core::random;
 use rsasim_core::{attenuation, diagnostic, expand, geometry, phantom, scenario, trace};
 use rsasim_files::output;
 use rsasim_migration as migration;
+pub mod bead_centre;
 pub mod beads;
 pub mod calibrate;
 pub mod contour;

@@ -29,7 +29,8 @@
 
 use glam::DVec2;
 
-use super::detect::{Blob, components, fits_one_bead, one_bead_area_range_px};
+use super::bead_centre::{Levels, refine};
+use super::detect::{Blob, components_at_least, fits_one_bead, one_bead_area_range_px};
 
 /// Bead images of a smaller radius (pixels) are never split.
 pub const MIN_RADIUS_PX: f64 = 1.3;
@@ -42,28 +43,33 @@ pub const MIN_SEPARATION_RADII: f64 = 1.75;
 /// Directions of the dividing lines [`two_means`] tries over a half turn (0.5° apart).
 const SPLIT_DIRECTIONS: usize = 360;
 
-/// Every 8-connected component of pixels equal to `on` in a `width`-wide row-major image, with
-/// each blob of two touching beads of `radius_px` split into the two beads' blobs and each blob
-/// that is neither one bead nor two separable ones dropped (see the module's documentation).
-pub fn bead_blobs(pixels: &[u16], width: usize, on: u16, radius_px: f64) -> Vec<Blob> {
-    let (labels, blobs) = components(pixels, width, on);
-    if !radius_px.is_finite() || radius_px < MIN_RADIUS_PX {
-        return blobs;
-    }
+/// The bead images of a `width`-wide row-major binary-mode image whose covered pixels are
+/// `i_max`: every 8-connected component of pixels covered at least half ([`Levels::core`]),
+/// each blob of two touching beads of `radius_px` split into the two beads' blobs, each blob
+/// that is neither one bead nor two separable ones dropped (see the module's documentation), and
+/// every one bead's centre taken from its pixels' covered fractions ([`refine`]).
+pub fn bead_blobs(pixels: &[u16], width: usize, i_max: u16, radius_px: f64) -> Vec<Blob> {
+    let levels = Levels::of(pixels, i_max);
+    let (labels, blobs) = components_at_least(pixels, width, levels.core());
     let mut out = Vec::with_capacity(blobs.len());
     for (k, blob) in blobs.into_iter().enumerate() {
-        if (blob.area as f64) < PAIR_MIN_AREAS * bead_area_px(radius_px) {
-            out.push(blob);
+        let label = k as u32 + 1;
+        if !radius_px.is_finite()
+            || radius_px < MIN_RADIUS_PX
+            || (blob.area as f64) < PAIR_MIN_AREAS * bead_area_px(radius_px)
+        {
+            out.push((label, blob));
             continue;
         }
-        let points = pixel_centres(&labels, width, k as u32 + 1, blob.bbox);
+        let points = pixel_centres(&labels, width, label, blob.bbox);
         match judge(&points, radius_px) {
-            Judgement::One => out.push(blob),
-            Judgement::Two(pair) => out.extend(pair),
+            Judgement::One => out.push((label, blob)),
+            Judgement::Two(pair) => out.extend(pair.map(|b| (label, b))),
             Judgement::Unresolved => {}
         }
     }
-    out
+    refine(&mut out, &labels, pixels, width, &levels, radius_px);
+    out.into_iter().map(|(_, b)| b).collect()
 }
 
 /// The area (pixels) of a bead image of `radius_px`.
@@ -285,6 +291,7 @@ fn blob_of(points: &[DVec2]) -> Blob {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::components;
 
     /// A noise-free binary image of discs (`centre`, `radius_px`) sampled at pixel centres, as
     /// one ray per pixel from a point source images a bead: `on` inside any disc, 0 elsewhere.
