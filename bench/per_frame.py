@@ -21,7 +21,10 @@ import json
 import math
 import pathlib
 import statistics
-import subprocess
+import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import stamp  # noqa: E402
 
 
 def mat(rows):
@@ -86,11 +89,9 @@ def main():
     out = pathlib.Path(args.out)
     errors = {}  # (phantom, dof) -> {frame: [errors]}
     joint_errors = {}
-    program = ""
     offset = [float(x) for x in args.proximal_frame_mm.split(",")]
     for run in sorted((out / "runs").iterdir()):
         truth = json.loads((run / "truth.json").read_text())
-        program = truth["program"]
         frame = truth["frame"]["index"]
         measured = json.loads((run / args.name).read_text())
         poses = {}
@@ -115,11 +116,9 @@ def main():
             want = want["angles_deg"] + want["translation_mm"]
             for dof, g, w in zip(["flexion (°)", "ab/adduction (°)", "rotation (°)", "q1 (mm)", "q2 (mm)", "q3 (mm)"], got, want):
                 joint_errors.setdefault(dof, {}).setdefault(frame, []).append(g - w)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                            cwd=pathlib.Path(__file__).resolve().parent).stdout.strip()
-    print(f"Command: `bench/per_frame.py OUT {args.name}"
-          + (f" --joint {args.joint} --proximal-frame-mm {args.proximal_frame_mm}" if args.joint else "")
-          + f"` on an output of {program}; script at {commit}\n")
+    command = (f"bench/per_frame.py OUT {args.name}"
+               + (f" --joint {args.joint} --proximal-frame-mm {args.proximal_frame_mm}" if args.joint else ""))
+    print(stamp.line(command, note=f"OUT: {stamp.output_origin(args.out, args.name)}") + "\n")
     print("| what | degree of freedom | largest \\|trueness\\| over frames | RMS | largest \\|error\\| | sequences per frame |")
     print("|---|---|---:|---:|---:|---:|")
     for (phantom, dof), by_frame in errors.items():

@@ -14,7 +14,10 @@ import argparse
 import json
 import math
 import pathlib
-import subprocess
+import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import stamp  # noqa: E402
 
 
 def angle_deg(a, b):
@@ -33,10 +36,8 @@ def main():
     args = ap.parse_args()
     out = pathlib.Path(args.out)
     levels = {}
-    program = ""
     for run in sorted((out / "runs").iterdir()):
         truth = json.loads((run / "truth.json").read_text())
-        program = truth["program"]
         factor = truth.get("exposure_factor")
         level = f"×{factor}" if factor is not None else f"noise {truth['noise_level']}"
         row = levels.setdefault(level, {"runs": 0, "missing": 0, "mm": [], "deg": [], "beyond": []})
@@ -54,10 +55,9 @@ def main():
         row["deg"].append(deg)
         if mm > args.bound_mm or deg > args.bound_deg:
             row["beyond"].append(f"{truth['id']} ({mm:.3f} mm, {deg:.3f}°)")
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                            cwd=pathlib.Path(__file__).resolve().parent).stdout.strip()
-    print(f"Command: `bench/per_run.py OUT {args.name} --model {args.model}` on an output of {program}; "
-          f"script at {commit}\n")
+    command = (f"bench/per_run.py OUT {args.name} --model {args.model} --bound-mm {args.bound_mm} "
+               f"--bound-deg {args.bound_deg}")
+    print(stamp.line(command, note=f"OUT: {stamp.output_origin(args.out, args.name)}") + "\n")
     print(f"| level | runs | not found | largest position error, mm | largest orientation error, ° | "
           f"runs beyond {args.bound_mm} mm or {args.bound_deg}° |")
     print("|---|---:|---:|---:|---:|---|")

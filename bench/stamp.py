@@ -130,6 +130,27 @@ def line(command, binary=None, load_start=None, note=None, version_line=None):
     return text
 
 
+def output_origin(out, results_name):
+    """What an analysed output folder is, from its manifest.json and its first run's results
+    file `results_name`: the scenario, its seed, the build that wrote the output and the software
+    that wrote the results (for tables computed from an output rather than a binary's run)."""
+    out = pathlib.Path(out)
+    try:
+        m = json.loads((out / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return "an output without a readable manifest.json"
+    build = m.get("build", {})
+    text = (f"scenario `{m.get('scenario')}` (seed {m.get('seed')}) written by `{m.get('program')}` "
+            f"at {str(build.get('commit', 'unknown'))[:7]}")
+    for run in sorted((out / "runs").iterdir()) if (out / "runs").is_dir() else []:
+        try:
+            software = json.loads((run / results_name).read_text()).get("software")
+        except (OSError, ValueError):
+            continue
+        return f"{text}, results `{results_name}` by `{software}`"
+    return text
+
+
 def write(path, command, table, binary=None, load_start=None, note=None, version_line=None):
     """Writes a table file: the stamp line, a blank line, the table (Markdown)."""
     path = pathlib.Path(path)
