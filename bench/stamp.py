@@ -46,9 +46,11 @@ def git(*args):
 
 def commit():
     """HEAD's short hash, with `-dirty` when the tree differs from it (the manual and the
-    changelog aside: they change no measurement, and the tables are written into them)."""
+    changelog aside: they change no measurement, and the tables are written into them; so do the
+    `.bench-*` scenarios a bench writes beside the shipped ones while it runs)."""
     head = git("rev-parse", "--short", "HEAD") or "unknown"
-    status = git("status", "--porcelain", "--", ".", ":(exclude)docs", ":(exclude)CHANGELOG.md")
+    status = git("status", "--porcelain", "--", ".", ":(exclude)docs", ":(exclude)CHANGELOG.md",
+                 ":(exclude,glob)**/.bench-*")
     return head + ("-dirty" if status else "")
 
 
