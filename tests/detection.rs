@@ -176,7 +176,10 @@ fn in_binary_mode_the_reference_program_calibrates_and_fits_with_every_area_samp
     let mut worst: f64 = 0.0;
     for samples in [1, 4] {
         for (s, spot) in spots.iter().enumerate() {
-            let label = format!("pixel_samples {samples}, spot {}", ["off", "on", "falling 30 %"][s]);
+            let label = format!(
+                "pixel_samples {samples}, spot {}",
+                ["off", "on", "falling 30 %"][s]
+            );
             let text = base.replacen(
                 "[protocol]",
                 &format!("[imaging]\npixel_samples = {samples}\n{spot}\n[protocol]"),

@@ -300,3 +300,126 @@ fn verify_covers_the_dicom_files() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stdout).contains("runs/n0-r00/model-det2.dcm"));
 }
+
+/// A dynamic exam's DICOM files as a viewer groups them, read by pydicom (Debian
+/// `python3-pydicom`) and validated by dciodvfy: the golden `small_sequence` (2 sequences of 3
+/// frames, 2 detectors, 2 exposures) written as DICOM. Each sequence is one study (its id as
+/// Study ID); each camera of each exposure one series, whose instances are the frames in order
+/// (Instance Number = frame + 1) at the frame's time (Acquisition and Content Time, 20 ms apart
+/// at 50 frames per second); no two series share a number within a study.
+#[test]
+fn a_sequence_is_one_study_with_a_series_per_camera_and_its_frames_in_time_order() {
+    let Some(python) = pydicom_python() else {
+        return;
+    };
+    let models = common::root().join("scenarios/golden/models");
+    let text = std::fs::read_to_string(common::root().join("scenarios/golden/small_sequence.toml"))
+        .unwrap()
+        .replace(
+            "formats = [\"tiff\", \"exr\"]",
+            "formats = [\"tiff\", \"dicom\"]",
+        )
+        .replace("\"models/", &format!("\"{}/", models.display()));
+    assert!(text.contains("\"dicom\"]"));
+    let tmp = tempfile::tempdir().unwrap();
+    let out = common::run_scenario_text(tmp.path(), "seq", &text);
+    let files = dcm_files(&out);
+    // 2 sequences × 3 frames × 2 exposures × 2 detectors × the intents (presentation by default).
+    assert_eq!(files.len() % 24, 0, "{}", files.len());
+    const SCRIPT: &str = r#"
+import sys, pydicom
+for path in sys.argv[1:]:
+    d = pydicom.dcmread(path)
+    print("|".join([path, d.StudyInstanceUID, d.StudyID, d.SeriesInstanceUID, str(d.SeriesNumber),
+                    str(d.InstanceNumber), d.AcquisitionTime, d.ContentTime, d.PresentationIntentType]))
+"#;
+    let o = Command::new(python)
+        .arg("-c")
+        .arg(SCRIPT)
+        .args(&files)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    use std::collections::{BTreeMap, BTreeSet};
+    let mut studies: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut series: BTreeMap<String, Vec<(u32, String, String)>> = BTreeMap::new();
+    let mut numbers: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
+    for line in String::from_utf8_lossy(&o.stdout).lines() {
+        let f: Vec<&str> = line.split('|').collect();
+        let [
+            path,
+            study,
+            study_id,
+            series_uid,
+            series_no,
+            instance,
+            acq,
+            content,
+            _,
+        ] = f[..]
+        else {
+            panic!("{line}")
+        };
+        // The run folder is `<sequence>-f<frame>`.
+        let run = Path::new(path)
+            .parent()
+            .unwrap()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        let (sequence, frame) = run.rsplit_once("-f").unwrap();
+        assert_eq!(study_id, sequence, "{line}");
+        studies
+            .entry(study.to_string())
+            .or_default()
+            .insert(run.clone());
+        let frame: u32 = frame.parse().unwrap();
+        assert_eq!(instance.parse::<u32>().unwrap(), frame + 1, "{line}");
+        assert_eq!(acq, content, "{line}");
+        series
+            .entry(series_uid.to_string())
+            .or_default()
+            .push((frame, acq.to_string(), run));
+        numbers
+            .entry((study.to_string(), series_no.to_string()))
+            .or_default()
+            .insert(series_uid.to_string());
+    }
+    assert_eq!(studies.len(), 2, "one study per sequence: {studies:?}");
+    for runs in studies.values() {
+        assert_eq!(runs.len(), 3, "{runs:?}");
+    }
+    for (uid, mut frames) in series {
+        frames.sort();
+        assert_eq!(frames.len(), 3, "{uid}: one instance per frame: {frames:?}");
+        let times: Vec<&str> = frames.iter().map(|f| f.1.as_str()).collect();
+        assert_eq!(
+            times,
+            ["000000.000000", "000000.020000", "000000.040000"],
+            "{uid}"
+        );
+    }
+    for ((study, number), uids) in numbers {
+        assert_eq!(
+            uids.len(),
+            1,
+            "study {study}: series number {number} given to {uids:?}"
+        );
+    }
+    if have("dciodvfy", &["-help"], "dicom3tools") {
+        for file in &files {
+            let o = Command::new("dciodvfy").arg(file).output().unwrap();
+            let report = format!(
+                "{}{}",
+                String::from_utf8_lossy(&o.stdout),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            assert!(
+                !report.contains("Error") && !report.contains("Warning"),
+                "{}: {report}",
+                file.display()
+            );
+        }
+    }
+}

@@ -73,19 +73,25 @@ pub fn run_scenario(scenario: &str, out: &Path, env: &[(&str, &str)]) {
 }
 
 /// Writes scenario `text` to `dir/<name>.toml` and runs it into `dir/out`, allowing the shipped
-/// models' folder (the text names them by absolute path, e.g. through
-/// `root().join("scenarios/models")`); panics with stderr on failure. Returns the output folder.
+/// models' folders `scenarios/models` and `scenarios/golden/models` (the text names them by
+/// absolute path, e.g. through `root().join("scenarios/models")`); panics with stderr on
+/// failure. Returns the output folder.
 pub fn run_scenario_text(dir: &Path, name: &str, text: &str) -> PathBuf {
     let scenario = dir.join(format!("{name}.toml"));
     std::fs::write(&scenario, text).unwrap();
     let out = dir.join("out");
-    let models = root().join("scenarios/models");
+    let (models, golden) = (
+        root().join("scenarios/models"),
+        root().join("scenarios/golden/models"),
+    );
     rsasim_ok(&[
         scenario.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--allow-dir",
         models.to_str().unwrap(),
+        "--allow-dir",
+        golden.to_str().unwrap(),
     ]);
     out
 }

@@ -308,7 +308,10 @@ mod tests {
             }
         }
         assert!(worst < 0.05, "covered-fraction centre off by {worst} px");
-        assert!(worst_full > 0.15, "I_max pixels alone off by only {worst_full} px");
+        assert!(
+            worst_full > 0.15,
+            "I_max pixels alone off by only {worst_full} px"
+        );
     }
 
     #[test]
@@ -327,8 +330,16 @@ mod tests {
             .map(|(k, b)| (k as u32 + 1, b))
             .collect();
         refine(&mut blobs, &labels, &img, side, &levels, r);
-        assert!((blobs[0].1.centroid - a).length() < 0.06, "{:?}", blobs[0].1.centroid);
-        assert!((blobs[1].1.centroid - b).length() < 0.06, "{:?}", blobs[1].1.centroid);
+        assert!(
+            (blobs[0].1.centroid - a).length() < 0.06,
+            "{:?}",
+            blobs[0].1.centroid
+        );
+        assert!(
+            (blobs[1].1.centroid - b).length() < 0.06,
+            "{:?}",
+            blobs[1].1.centroid
+        );
     }
 
     #[test]

@@ -120,6 +120,34 @@ pub fn describe<'a>(image: &ImageRef, views: &[NominalView], pixels: &'a [u16]) 
         None => format!("noise level {}", run.noise_level),
     };
     let sha = image.scenario_sha256;
+    let intent_number = |series: usize| (series * intents.len() + intent_index + 1) as u32;
+    // A static run is one study with a series per exposure and an instance per detector; a
+    // sequence is one study with a series per exposure and detector (one camera's cine) and an
+    // instance per frame, acquired at the frame's time.
+    let (study, series_uid, series_number, instance_number, time, frame_words) = match &run.frame {
+        None => (
+            run.id.as_str(),
+            uid::series_uid(sha, &run.id, &exposure.id, intent.name()),
+            intent_number(image.exposure_index),
+            (image.detector_index + 1) as u32,
+            "000000".to_string(),
+            String::new(),
+        ),
+        Some(f) => (
+            f.sequence.as_str(),
+            uid::camera_series_uid(sha, &f.sequence, &exposure.id, &det.id, intent.name()),
+            intent_number(image.exposure_index * run.detectors.len() + image.detector_index),
+            f.index + 1,
+            tm(f.time_s),
+            format!(
+                ", frame {} of {} of sequence {} at {} s from the first (the middle of its pulse)",
+                f.index + 1,
+                f.count,
+                f.sequence,
+                f.time_s
+            ),
+        ),
+    };
     DxImage {
         intent,
         width: det.pixels[0],
@@ -149,18 +177,22 @@ pub fn describe<'a>(image: &ImageRef, views: &[NominalView], pixels: &'a [u16]) 
             .dicom
             .dicom_date()
             .unwrap_or_else(|| "20000101".into()),
-        study_uid: uid::study_uid(sha, &run.id),
-        series_uid: uid::series_uid(sha, &run.id, &exposure.id, intent.name()),
+        study_uid: uid::study_uid(sha, study),
+        series_uid,
         instance_uid: uid::instance_uid(sha, &run.id, &exposure.id, &det.id, intent.name()),
-        series_number: (image.exposure_index * intents.len() + intent_index + 1) as u32,
-        instance_number: (image.detector_index + 1) as u32,
+        series_number,
+        instance_number,
+        acquisition_time: time,
         patient_id: s.name.clone(),
-        study_id: run.id.clone(),
-        study_description: format!("rsasim run {}", run.id),
+        study_id: study.to_string(),
+        study_description: match &run.frame {
+            None => format!("rsasim run {}", run.id),
+            Some(_) => format!("rsasim sequence {study}"),
+        },
         series_description: format!("{} {}", exposure.id, intent.name()),
         detector_id: det.id.clone(),
         comments: format!(
-            "Synthetic image simulated by {}: scenario {}, run {}, {level}, exposure {} \
+            "Synthetic image simulated by {}: scenario {}, run {}{frame_words}, {level}, exposure {} \
              (phantoms {}), detector {}, {} bits per pixel (I_max {}), for {}. Distances are the \
              nominal set-up's; the exact geometry is in the run's ground truth.",
             crate::output::program(),
@@ -177,9 +209,25 @@ pub fn describe<'a>(image: &ImageRef, views: &[NominalView], pixels: &'a [u16]) 
     }
 }
 
+/// A DICOM Time (TM, `HHMMSS.FFFFFF`) `seconds` after midnight, to the microsecond (at most
+/// 23:59:59.999999).
+pub fn tm(seconds: f64) -> String {
+    let us = (seconds.max(0.0) * 1e6).round().min(86_399_999_999.0) as u64;
+    let (s, frac) = (us / 1_000_000, us % 1_000_000);
+    format!("{:02}{:02}{:02}.{frac:06}", s / 3600, s / 60 % 60, s % 60)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn times_are_hours_minutes_seconds_and_microseconds() {
+        assert_eq!(tm(0.0), "000000.000000");
+        assert_eq!(tm(0.37), "000000.370000");
+        assert_eq!(tm(3725.0000004), "010205.000000");
+        assert_eq!(tm(1e9), "235959.999999");
+    }
 
     #[test]
     fn patient_directions_follow_the_box_axes() {

@@ -110,6 +110,9 @@ pub struct DxImage<'a> {
     pub series_number: u32,
     /// Instance Number.
     pub instance_number: u32,
+    /// Content and Acquisition Time (TM): `000000` for a static run, a dynamic exam's frame's
+    /// time from its first frame.
+    pub acquisition_time: String,
     /// Patient ID (the scenario name).
     pub patient_id: String,
     /// Study ID (the run id).
@@ -247,9 +250,9 @@ pub fn encode_dx(img: &DxImage) -> Result<Vec<u8>, String> {
             &img.instance_number.to_string(),
         ),
         text(tags::CONTENT_DATE, VR::DA, date),
-        text(tags::CONTENT_TIME, VR::TM, "000000"),
+        text(tags::CONTENT_TIME, VR::TM, &img.acquisition_time),
         text(tags::ACQUISITION_DATE, VR::DA, date),
-        text(tags::ACQUISITION_TIME, VR::TM, "000000"),
+        text(tags::ACQUISITION_TIME, VR::TM, &img.acquisition_time),
         strs(
             tags::IMAGE_TYPE,
             VR::CS,

@@ -23,6 +23,7 @@ fn image(intent: DicomIntent, meaning: PixelMeaning, pixels: &[u16]) -> DxImage<
         instance_uid: uid::instance_uid("ab", "n0-r00", "ap", "det1", intent.name()),
         series_number: 1,
         instance_number: 2,
+        acquisition_time: "000000".into(),
         patient_id: "test".into(),
         study_id: "n0-r00".into(),
         study_description: "rsasim run n0-r00".into(),

@@ -27,7 +27,7 @@ pub fn uid_from_label(label: &str) -> String {
     format!("2.25.{}", u128::from_be_bytes(bytes))
 }
 
-/// The Study Instance UID of a run (one exam).
+/// The Study Instance UID of a run (one exam), or of a dynamic exam's sequence (all its frames).
 pub fn study_uid(scenario_sha256: &str, run: &str) -> String {
     uid_from_label(&format!("rsasim/dicom/v1/study/{scenario_sha256}/{run}"))
 }
@@ -36,6 +36,20 @@ pub fn study_uid(scenario_sha256: &str, run: &str) -> String {
 pub fn series_uid(scenario_sha256: &str, run: &str, exposure: &str, intent: &str) -> String {
     uid_from_label(&format!(
         "rsasim/dicom/v1/series/{scenario_sha256}/{run}/{exposure}/{intent}"
+    ))
+}
+
+/// The Series Instance UID of one camera (`detector`) of `exposure` in a dynamic exam's `sequence`: its
+/// frames, for `intent`.
+pub fn camera_series_uid(
+    scenario_sha256: &str,
+    sequence: &str,
+    exposure: &str,
+    detector: &str,
+    intent: &str,
+) -> String {
+    uid_from_label(&format!(
+        "rsasim/dicom/v1/camera-series/{scenario_sha256}/{sequence}/{exposure}/{detector}/{intent}"
     ))
 }
 
