@@ -885,8 +885,9 @@ fn a_sequences_tracking_is_read_line_by_line_frame_by_frame() {
 
 /// XMALab's exports of a sequence's trial: rigid-body transformations with the `Frame` column
 /// (rows given last frame first, each read as the frame it names) and 3-D points without it
-/// (row k is frame k); the truth scores zero in every frame; a row too few, a `Frame` beyond
-/// the trial and a frame twice are refused naming the file, the line and the column.
+/// (row k is frame k); the truth scores zero in every frame; a range of frames with the `Frame`
+/// column leaves the others untracked; a row too few without it, a row too many, a `Frame`
+/// beyond the trial and a frame twice are refused naming the file, the line and the column.
 #[test]
 fn a_sequences_xmalab_exports_are_read_row_by_row_honouring_the_frame_column() {
     let (_tmp, out, dest, frames) = sequence_exported("xmalab");
@@ -920,17 +921,56 @@ fn a_sequences_xmalab_exports_are_read_row_by_row_honouring_the_frame_column() {
     )
     .unwrap();
     assert_frame_offsets(&out, &dest, "xmalab-points.csv", &frames, &frame_offset);
-    // Refused: a row too few (the line after the last), a frame beyond the trial (line 3: the
-    // second row), a frame twice.
+    // XMALab's export of frames 2 to 4 (it writes a range only with the Frame column): those
+    // three read as their frames, frames 1 and 5 untracked.
+    std::fs::write(
+        trial.join("xmalab-range.csv"),
+        rigid(&frame_offset, &[1, 2, 3]),
+    )
+    .unwrap();
+    let runs = rsasim::evaluate::input::load_truths(&out).unwrap();
+    let measured = rsasim::evaluate::input::load_per_run(
+        "xmalab-range.csv",
+        Some(&dest),
+        &runs,
+        &out,
+        Default::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    for (k, truth) in frames.iter().enumerate() {
+        let femur = measured[&truth.run.id].phantoms.get("femur");
+        if k == 0 || k == 4 {
+            assert!(femur.is_none(), "frame {k} is outside the range: {femur:?}");
+        } else {
+            let p = truth.run.phantoms.iter().find(|p| p.id == "femur").unwrap();
+            let moved = p.position_mm + glam::DVec3::from_array(frame_offset(k));
+            assert!((femur.unwrap().0 - moved).length() < 1e-9, "frame {k}");
+        }
+    }
+    // Without the Frame column a row too few is refused: which frame is missing is unknown.
+    std::fs::write(
+        trial.join("bad.csv"),
+        format!("{}\n{}", points_header(&frames[0]), points[..4].concat()),
+    )
+    .unwrap();
+    let e = evaluate_refused(&out, &dest, "bad.csv", &[]);
+    assert!(
+        e.contains(
+            "n0-r00/bad.csv:6:1: the file holds 4 data row(s), but sequence n0-r00 has 5 frame(s)"
+        ),
+        "{e}"
+    );
+    // Refused: a row too many (the first beyond the trial's frames), a frame beyond the trial
+    // (line 3: the second row), a frame twice.
     let file = "n0-r00/bad.csv";
     for (order, text) in [
         (
-            vec![0, 1, 2, 3],
-            format!("{file}:6:1: the file holds 4 data row(s), but sequence n0-r00 has 5 frame(s)"),
+            vec![0, 1, 2, 3, 4, 4],
+            format!("{file}:7:1: the file holds 6 data row(s), but sequence n0-r00 has 5 frame(s)"),
         ),
         (
             vec![0, 5, 1, 2, 3],
-            format!("{file}:3:1: `Frame` is `6`, not a frame of the trial (1 to 5)"),
+            format!("{file}:3:1: `Frame` is `6`, not a frame of the trial in this output (1 to 5)"),
         ),
         (
             vec![0, 1, 1, 2, 3],

@@ -143,10 +143,10 @@ pub fn read_export(
 /// trial, frame 1 first (`Trial::saveRigidBodyTransformations`, `Trial::save3dPoints`,
 /// `Trial::save2dPoints`, src/core/Trial.cpp), so row k is frame k; a `Frame` column, XMALab's
 /// 1-based frame number in the trial, is honoured in a sequence: row `Frame = k` is the trial's
-/// k-th frame, each frame once. A file with another number of data rows is an error naming
-/// its first row too many, or the line after its last (XMALab's "from"/"to" export of part of a
-/// trial is refused: export every frame, NaN where untracked). Returns one result per frame, in
-/// the same order.
+/// k-th frame, each frame once, and the frames no row names (XMALab's "from"/"to" export of part
+/// of a trial, which it writes only with the `Frame` column) are untracked, as a row of NaN.
+/// Without the column, a file with another number of data rows is an error naming its first row
+/// too many, or the line after its last. Returns one result per frame, in the same order.
 pub fn read_export_frames(
     file: &Path,
     frames: &[&Truth],
@@ -187,7 +187,17 @@ pub fn read_export_frames(
         .map_err(|(column, message, help)| at(header_line, column, message, &help))?;
     let data: Vec<(usize, &str)> = lines[1..].to_vec();
     let runs: Vec<&crate::expand::Run> = frames.iter().map(|t| &t.run).collect();
-    if let Some(problem) = super::trials::frame_count_problem(data.len(), &runs, "data row") {
+    // With its `Frame` column XMALab exports the frames from..to the user picked
+    // (`Trial::saveRigidBodyTransformations` and `Trial::save3dPoints` take start and stop only
+    // when `saveColumn` is set, src/core/Trial.cpp): each row names its frame, and the frames
+    // not given are untracked. Without it, every frame of the trial, in order.
+    let named_frames = layout.frame_column && first.run.frame.is_some();
+    let count_problem = if named_frames && (1..=frames.len()).contains(&data.len()) {
+        None
+    } else {
+        super::trials::frame_count_problem(data.len(), &runs, "data row")
+    };
+    if let Some(problem) = count_problem {
         let line = data
             .get(frames.len())
             .map_or_else(|| data.last().map_or(header_line, |l| l.0 + 1), |r| r.0);
@@ -226,8 +236,8 @@ pub fn read_export_frames(
                 "every row needs as many values as the header",
             ));
         }
-        let index = if layout.frame_column && first.run.frame.is_some() {
-            frame_of_row(&values[0], frames.len(), &out)
+        let index = if named_frames {
+            frame_of_row(&values[0], &runs, &out)
                 .map_err(|(message, help)| at(row_line, values[0].column, message, &help))?
         } else {
             k
@@ -238,37 +248,70 @@ pub fn read_export_frames(
             .map_err(|(column, message, help)| at(row_line, column, message, help))?;
         out[index] = Some(measured);
     }
-    Ok(out.into_iter().flatten().collect())
+    // A frame outside the exported range: untracked, as a row of NaN.
+    let untracked: Vec<Cell<'_>> = (0..layout.lead + layout.names.len())
+        .map(|k| Cell {
+            text: "NaN",
+            column: k + 1,
+        })
+        .collect();
+    let mut all = Vec::with_capacity(frames.len());
+    for (slot, truth) in out.into_iter().zip(frames) {
+        all.push(match slot {
+            Some(m) => m,
+            None => layout
+                .measured(file, truth, &untracked, pixels)
+                .map_err(|(column, message, help)| at(header_line, column, message, help))?,
+        });
+    }
+    Ok(all)
 }
 
-/// The trial frame (0-based) a row's `Frame` cell names: XMALab's 1-based frame number, within
-/// the trial's `count` frames and not yet given (`done`); otherwise a message and a help.
+/// The position in `runs` (a sequence's frames in this output, in frame order) of the frame a
+/// row's `Frame` cell names, XMALab's 1-based frame number in the trial (the frame's index + 1:
+/// an exported shard keeps the sequence's numbers), not yet given (`done`); otherwise a message
+/// and a help.
 fn frame_of_row(
     cell: &Cell<'_>,
-    count: usize,
+    runs: &[&crate::expand::Run],
     done: &[Option<Measured>],
 ) -> Result<usize, (String, String)> {
-    let frame = cell
+    let number = |r: &crate::expand::Run| r.frame.as_ref().map(|f| f.index as usize + 1);
+    let position = cell
         .text
         .parse::<usize>()
         .ok()
-        .filter(|f| (1..=count).contains(f));
-    let Some(f) = frame else {
+        .and_then(|n| runs.iter().position(|r| number(r) == Some(n)));
+    let Some(k) = position else {
+        let (lo, hi) = (
+            runs.first().and_then(|r| number(r)).unwrap_or(1),
+            runs.last().and_then(|r| number(r)).unwrap_or(1),
+        );
+        let range = if hi + 1 - lo == runs.len() {
+            format!("{lo} to {hi}")
+        } else {
+            let all: Vec<String> = runs
+                .iter()
+                .filter_map(|r| number(r))
+                .map(|n| n.to_string())
+                .collect();
+            all.join(", ")
+        };
         return Err((
             format!(
-                "`Frame` is `{}`, not a frame of the trial (1 to {count})",
+                "`Frame` is `{}`, not a frame of the trial in this output ({range})",
                 cut(cell.text)
             ),
-            "XMALab numbers the frames of a trial from 1; export every frame of the sequence's trial".into(),
+            "XMALab numbers the frames of a trial from 1; export the sequence's trial with its Frame column".into(),
         ));
     };
-    if done.get(f - 1).is_some_and(Option::is_some) {
+    if done.get(k).is_some_and(Option::is_some) {
         return Err((
-            format!("frame {f} appears twice"),
+            format!("frame {} appears twice", cell.text.trim()),
             "XMALab writes each frame once".into(),
         ));
     }
-    Ok(f - 1)
+    Ok(k)
 }
 
 /// What a header of XMALab's exports says: the leading cells that name no value (`Frame`, the
