@@ -970,7 +970,7 @@ fn a_sequences_xmalab_exports_are_read_row_by_row_honouring_the_frame_column() {
         ),
         (
             vec![0, 5, 1, 2, 3],
-            format!("{file}:3:1: `Frame` is `6`, not a frame of the trial in this output (1 to 5)"),
+            format!("{file}:3:1: `Frame` is `6`, not a frame of the trial (1 to 5)"),
         ),
         (
             vec![0, 1, 1, 2, 3],
@@ -1065,4 +1065,65 @@ fn export_takes_sequence_ids_and_refuses_frames_that_break_the_sequence() {
             && e.contains("frame 2 of sequence \"n0-r00\" (5 frames) is run \"n0-r00-f0002\""),
         "{e}"
     );
+}
+
+/// `export --calibration-from` on a sequence: the trial's one calibration is the measured one of
+/// the sequence's first frame (the reference program calibrates every frame from the box), not
+/// the truth, for every camera.
+#[test]
+fn a_sequences_trial_takes_the_first_frames_measured_calibration() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    common::run_scenario("tests/scenarios/sequence.toml", &out, &[]);
+    common::rsasim_ok(&["reconstruct", out.to_str().unwrap()]);
+    let name = "measured-rsasim-dlt-markers.json";
+    let all = truths(&out);
+    let (first_dir, first) = &all[0];
+    assert_eq!(first.run.frame.as_ref().unwrap().index, 0);
+    // Frame 0's measured sources moved by 1 mm along x, so that its calibration differs from
+    // every other frame's (the box stands still, and its sharp binary images give every frame
+    // the same bead centres whatever the noise).
+    let mut m: rsasim::output::Measured =
+        serde_json::from_slice(&std::fs::read(first_dir.join(name)).unwrap()).unwrap();
+    for s in &mut m.sources {
+        s.position_mm[0] += 1.0;
+    }
+    std::fs::write(first_dir.join(name), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    let later: rsasim::output::Measured =
+        serde_json::from_slice(&std::fs::read(all[2].0.join(name)).unwrap()).unwrap();
+    let dest = tmp.path().join("xma");
+    common::export_ok(&out, "xmalab", &dest, &["--calibration-from", name]);
+    for det in &first.run.detectors {
+        let (_, _, r, t) = mayacam(
+            &dest
+                .join("n0-r00")
+                .join(format!("calibration/{}_MayaCam.txt", det.id)),
+        );
+        let centre: Vec<f64> = (0..3)
+            .map(|j| -(0..3).map(|i| r[i][j] * t[i]).sum::<f64>())
+            .collect();
+        let source = |m: &rsasim::output::Measured| {
+            m.sources
+                .iter()
+                .find(|s| s.id == det.source)
+                .unwrap()
+                .position_mm
+        };
+        for j in 0..3 {
+            assert!(
+                (centre[j] - source(&m)[j]).abs() < 1e-9,
+                "{}: {centre:?} against frame 0's {:?}",
+                det.id,
+                source(&m)
+            );
+        }
+        assert!(
+            (0..3).any(|j| (centre[j] - first.run.source_of(det)[j]).abs() > 1e-6),
+            "the measured source equals the true one"
+        );
+        assert!(
+            (0..3).any(|j| (source(&m)[j] - source(&later)[j]).abs() > 1e-9),
+            "frames 0 and 2 have the same sources: the test cannot tell which frame was used"
+        );
+    }
 }

@@ -237,7 +237,7 @@ pub fn read_export_frames(
             ));
         }
         let index = if named_frames {
-            frame_of_row(&values[0], &runs, &out)
+            frame_of_row(&values[0], frames.len(), &out)
                 .map_err(|(message, help)| at(row_line, values[0].column, message, &help))?
         } else {
             k
@@ -267,51 +267,35 @@ pub fn read_export_frames(
     Ok(all)
 }
 
-/// The position in `runs` (a sequence's frames in this output, in frame order) of the frame a
-/// row's `Frame` cell names, XMALab's 1-based frame number in the trial (the frame's index + 1:
-/// an exported shard keeps the sequence's numbers), not yet given (`done`); otherwise a message
-/// and a help.
+/// The position in the trial (0-based) of the frame a row's `Frame` cell names: XMALab's 1-based
+/// frame number in the trial, within its `count` frames (a shard's trial holds the frames the
+/// shard holds, in order) and not yet given (`done`); otherwise a message and a help.
 fn frame_of_row(
     cell: &Cell<'_>,
-    runs: &[&crate::expand::Run],
+    count: usize,
     done: &[Option<Measured>],
 ) -> Result<usize, (String, String)> {
-    let number = |r: &crate::expand::Run| r.frame.as_ref().map(|f| f.index as usize + 1);
-    let position = cell
+    let frame = cell
         .text
         .parse::<usize>()
         .ok()
-        .and_then(|n| runs.iter().position(|r| number(r) == Some(n)));
-    let Some(k) = position else {
-        let (lo, hi) = (
-            runs.first().and_then(|r| number(r)).unwrap_or(1),
-            runs.last().and_then(|r| number(r)).unwrap_or(1),
-        );
-        let range = if hi + 1 - lo == runs.len() {
-            format!("{lo} to {hi}")
-        } else {
-            let all: Vec<String> = runs
-                .iter()
-                .filter_map(|r| number(r))
-                .map(|n| n.to_string())
-                .collect();
-            all.join(", ")
-        };
+        .filter(|f| (1..=count).contains(f));
+    let Some(f) = frame else {
         return Err((
             format!(
-                "`Frame` is `{}`, not a frame of the trial in this output ({range})",
+                "`Frame` is `{}`, not a frame of the trial (1 to {count})",
                 cut(cell.text)
             ),
-            "XMALab numbers the frames of a trial from 1; export the sequence's trial with its Frame column".into(),
+            "XMALab numbers the frames of a trial from 1".into(),
         ));
     };
-    if done.get(k).is_some_and(Option::is_some) {
+    if done.get(f - 1).is_some_and(Option::is_some) {
         return Err((
-            format!("frame {} appears twice", cell.text.trim()),
+            format!("frame {f} appears twice"),
             "XMALab writes each frame once".into(),
         ));
     }
-    Ok(k)
+    Ok(f - 1)
 }
 
 /// What a header of XMALab's exports says: the leading cells that name no value (`Frame`, the
