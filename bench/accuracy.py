@@ -14,6 +14,9 @@ taken from each report's report.csv by bench/report_table.py; nothing is typed.
                                       #   and the detection table detection-realistic-sharp.md
     bench/accuracy.py blurred         # the same of biplanar_realistic_blurred.toml ->
                                       #   accuracy-realistic-blurred.md, detection-realistic-blurred.md
+    bench/accuracy.py clinical        # the same of biplanar_clinical.toml (box and knee in one
+                                      #   radiograph) -> accuracy-realistic-clinical.md,
+                                      #   detection-realistic-clinical.md
     bench/accuracy.py migration       # tka_migration.toml -> migration-tka.md, migration-tka-double.md
     bench/accuracy.py migration-attenuation   # tka_migration_attenuation.toml ->
                                       #   migration-tka-attenuation.md
@@ -243,11 +246,17 @@ def cmd_biplanar(args):
         o.close()
 
 
-def cmd_realistic(args, blurred):
+# The realistic scenarios: sub-command -> (scenario, table name).
+REALISTIC = {
+    "realistic": ("scenarios/biplanar_realistic.toml", "realistic-sharp"),
+    "blurred": ("scenarios/biplanar_realistic_blurred.toml", "realistic-blurred"),
+    "clinical": ("scenarios/biplanar_clinical.toml", "realistic-clinical"),
+}
+
+
+def cmd_realistic(args, sub):
     binary = stamp.release_binary()
-    scenario = "scenarios/biplanar_realistic_blurred.toml" if blurred else "scenarios/biplanar_realistic.toml"
-    name = "realistic-blurred" if blurred else "realistic-sharp"
-    sub = "blurred" if blurred else "realistic"
+    scenario, name = REALISTIC[sub]
     o = Output(args, name)
     try:
         simulate(binary, scenario, o.dir, args.runs)
@@ -328,18 +337,17 @@ def cmd_migration(args, attenuation):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("which", choices=["biplanar", "realistic", "blurred", "migration", "migration-attenuation"])
+    ap.add_argument("which", choices=["biplanar", *REALISTIC, "migration", "migration-attenuation"])
     ap.add_argument("--out", default=None, help="keep the output in this folder")
     ap.add_argument("--runs", type=int, default=None, help="runs_per_level of a copy of the scenario")
     ap.add_argument("--tables", default=None, help="write the tables here (default docs/src/results/tables)")
     ap.add_argument("--no-detection", action="store_true")
     args = ap.parse_args()
-    if args.which in ("realistic", "blurred") and args.runs is None:
+    if args.which in REALISTIC and args.runs is None:
         args.runs = 5
     {
         "biplanar": cmd_biplanar,
-        "realistic": lambda a: cmd_realistic(a, False),
-        "blurred": lambda a: cmd_realistic(a, True),
+        **{sub: (lambda a, sub=sub: cmd_realistic(a, sub)) for sub in REALISTIC},
         "migration": lambda a: cmd_migration(a, False),
         "migration-attenuation": lambda a: cmd_migration(a, True),
     }[args.which](args)
