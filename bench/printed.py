@@ -138,6 +138,9 @@ def cmd_sampling(args):
         if m:
             found["point"] = f"| one ray per pixel centre (the paper) | {m[1]} px | | {n(m[4])} |"
             found["area"] = f"| **`pixel_samples = 8`** (issue 12's target ≤ 0.02 px) | **{m[2]} px** | {m[3]} px | {n(m[4])} |"
+        m = re.match(r"^(\d)×\d: p95 ([\d.]+) px, max ([\d.]+) px over (\d+) beads$", line)
+        if m:
+            found[f"area {m[1]}"] = f"| `pixel_samples = {m[1]}` | {m[2]} px | {m[3]} px | {n(m[4])} |"
         m = re.match(r"^(Uniform|Gaussian) 1\.2 mm spot, 8×8: p95 ([\d.]+) px, max ([\d.]+) px over (\d+) beads$", line)
         if m:
             found[m[1]] = f"| 8 × 8 and a 1.2 mm {m[1].replace('Uniform', 'uniform')} spot (3 × 3) | {m[2]} px | {m[3]} px | {n(m[4])} |"
@@ -145,7 +148,8 @@ def cmd_sampling(args):
         if m:
             found["attenuation point"] = f"| attenuation mode, bead absorption `1 − Q/S_open`, one ray | {m[2]} px | | {n(m[1])} |"
             found["attenuation area"] = f"| attenuation mode, 8 × 8 | {m[3]} px | {m[4]} px | {n(m[1])} |"
-    order = ["point", "area", "Uniform", "Gaussian", "attenuation point", "attenuation area"]
+    order = ["point", "area 2", "area 4", "area 6", "area", "Uniform", "Gaussian", "attenuation point",
+             "attenuation area"]
     rows = ["| 1 mm bead centroid vs truth, paper protocol geometry, noise 0 | p95 | max | beads |",
             "|---|---|---|---|"] + [found[k] for k in order if k in found]
     if len(rows) < 4:

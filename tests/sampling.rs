@@ -91,6 +91,19 @@ fn area_sampling_puts_bead_centroids_on_their_truth() {
         "point sampling p95 {point:.4} px; 8×8: p95 {p:.4} px, max {max:.4} px over {n} beads"
     );
     assert!(p <= 0.02, "8×8 p95 {p}");
+    // Between them, 2 × 2 to 6 × 6 rays (dynamic_knee.toml uses 4 × 4): each finer sampling
+    // places the centroids closer than the coarser one, and none is as coarse as one ray.
+    let mut coarser = point;
+    for s in [2, 4, 6] {
+        let (ps, maxs, ns) = p95(centroid_errors(20, &sampling(s, None)));
+        eprintln!("{s}×{s}: p95 {ps:.4} px, max {maxs:.4} px over {ns} beads");
+        assert!(
+            ps < coarser,
+            "{s}×{s} p95 {ps} not below the coarser sampling's {coarser}"
+        );
+        coarser = ps;
+    }
+    assert!(coarser > p, "6×6 p95 {coarser} not above 8×8's {p}");
 }
 
 #[test]
