@@ -35,6 +35,12 @@ pub const MIN_PLATE_ANGLE_DEG: f64 = 10.0;
 /// Least volume of the reference tetrahedron, as a fraction of the box beads' bounding box.
 pub const MIN_VOLUME_FRACTION: f64 = 0.05;
 
+/// The most box beads the choice examines. Each bead's crowding check looks at every other
+/// bead's image, so the work grows with the square of their number, and a scenario may hold up
+/// to a million beads per plate (a received truth any number). A box with more beads gets no
+/// calibration object: XMALab needs four reference beads, and the cameras hold the calibration.
+pub const MAX_BOX_BEADS: usize = 10_000;
+
 /// A bead of the calibration box, box frame.
 #[derive(Debug, Clone)]
 pub struct BoxBead {
@@ -82,10 +88,18 @@ pub struct NoFour {
     /// The largest tetrahedron among the qualified beads as a fraction of the bounding box
     /// (0 with fewer than four).
     pub volume_fraction: f64,
+    /// The number of box beads when it is beyond [`MAX_BOX_BEADS`] (none was examined).
+    pub too_many: Option<usize>,
 }
 
 impl std::fmt::Display for NoFour {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(n) = self.too_many {
+            return write!(
+                f,
+                "no reference beads are chosen for XMALab's cube calibration: the box has {n} beads, more than the {MAX_BOX_BEADS} the choice examines"
+            );
+        }
         let r = &self.rejections;
         write!(
             f,
@@ -246,6 +260,14 @@ fn bounding_volume(beads: &[BoxBead]) -> f64 {
 
 /// The four reference beads (indices into `beads`, ascending) by the rule of the module docs.
 pub fn choose(beads: &[BoxBead], views: &[View]) -> Result<[usize; 4], NoFour> {
+    if beads.len() > MAX_BOX_BEADS {
+        return Err(NoFour {
+            qualified: 0,
+            rejections: Rejections::default(),
+            volume_fraction: 0.0,
+            too_many: Some(beads.len()),
+        });
+    }
     let mut rejections = Rejections::default();
     let mut qualified = Vec::new();
     for (i, bead) in beads.iter().enumerate() {
@@ -266,6 +288,7 @@ pub fn choose(beads: &[BoxBead], views: &[View]) -> Result<[usize; 4], NoFour> {
             qualified: qualified.len(),
             rejections,
             volume_fraction: fraction,
+            too_many: None,
         }),
     }
 }
@@ -306,6 +329,27 @@ mod tests {
                 .collect(),
             hidden: vec![false; beads.len()],
         }
+    }
+
+    #[test]
+    fn a_box_of_more_beads_than_the_cap_is_refused_at_once_and_says_why() {
+        // A received truth with its box beads repeated many times (the fuzzer's seed 830 for
+        // export-xmalab: 100,049 markers took 17 s in the crowding check): refused before any
+        // bead is examined.
+        let one = bead(40.0, 40.0, 0.0, DVec3::Z);
+        let beads = vec![one.clone(); MAX_BOX_BEADS + 1];
+        let v = view(&beads[..1]);
+        let e = choose(&beads, &[v]).unwrap_err();
+        assert_eq!(e.too_many, Some(MAX_BOX_BEADS + 1));
+        assert!(
+            e.to_string()
+                .contains("the box has 10001 beads, more than the 10000"),
+            "{e}"
+        );
+        // Below the cap the beads are examined (five copies of one bead span no tetrahedron).
+        let few = vec![one; 5];
+        let e = choose(&few, &[view(&few)]).unwrap_err();
+        assert!(e.too_many.is_none() && e.qualified == 5, "{e:?}");
     }
 
     #[test]
