@@ -76,7 +76,8 @@ impl Cause {
         Cause::FoundOff,
     ];
 
-    /// The cause of a miss where the detector sees `probe` (`None`: no pixel's ring fits).
+    /// The cause of a miss where the detector sees `probe` (`None`: no pixel's ring fits in the
+    /// image, so the window holds no bead: counted with the shapes).
     fn of(probe: Option<&Probe>) -> Cause {
         match probe.map(|p| p.verdict.as_ref().err()) {
             None => Cause::Shape,
@@ -113,7 +114,7 @@ fn list_row(
     seen: Option<&Probe>,
 ) -> String {
     let what = match seen {
-        None => "no pixel whose ring fits".to_string(),
+        None => " |  |  |  |  | no pixel whose ring fits".to_string(),
         Some(p) => format!(
             "({}, {}) | {:.1} | {:.3} | {:.3} | {:.4} | {}",
             p.pixel[0],
@@ -144,7 +145,7 @@ fn to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 fn main() -> ExitCode {
     let list = std::env::args().any(|a| a == "--list");
     let Some(out) = std::env::args().skip(1).find(|a| a != "--list") else {
-        eprintln!("usage: missed_beads OUT");
+        eprintln!("usage: missed_beads OUT [--list]");
         return ExitCode::from(2);
     };
     let out = Path::new(&out);
