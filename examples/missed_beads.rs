@@ -4,7 +4,7 @@
 //! truth puts on the image, not over an implant, is looked for within 1 px of its truth pixel.
 //!
 //! ```text
-//! cargo run --release --example missed_beads -- OUT
+//! cargo run --release --example missed_beads -- OUT [--list]
 //! ```
 //!
 //! A missed bead is put in the first class that fits:
@@ -13,7 +13,17 @@
 //! - **plate edge**: the edge of a plate with a thickness (its outline projected) within the
 //!   detector's window around the bead (radius + 4 px);
 //! - **border**: the window reaches off the image;
-//! - **other**: none of these (noise, scatter, contrast).
+//! - **other**: none of these. The detector is asked what it sees there
+//!   ([`rsasim::reconstruct::beads::probe`]: the pixel of the strongest matched-filter response
+//!   within 1.5 px of the truth pixel), and the miss is put under the test that rejects that
+//!   candidate: **threshold** (signal-to-noise below the detector's), **local maximum** (a
+//!   stronger response within the bead's box), **metal**, **shape** (no background, no peak, or a
+//!   half-maximum region running out of the window), **centre** (the centroid or the Gaussian fit
+//!   drifts off the candidate), or **found off** (a blob is reported, more than 1 px away).
+//!
+//! With `--list`, every "other" miss follows the table, one line each: run, detector, bead,
+//! truth pixel, the nearest other bead's distance, the candidate's signal-to-noise, response,
+//! ring background and tile noise (attenuation), and the test that rejects it.
 //!
 //! A found bead is **misplaced** when its centre is more than 0.25 px from the truth pixel.
 //! Prints a Markdown table per exposure level, stamped with the output's program.
@@ -27,7 +37,7 @@ use rsasim::geometry::Pose;
 use rsasim::output::Truth;
 use rsasim::output::decode::read_image;
 use rsasim::output::exam::load_setup;
-use rsasim::reconstruct::beads::{find_beads, metal_mask};
+use rsasim::reconstruct::beads::{Probe, Rejection, find_beads, metal_mask, probe};
 use rsasim::reconstruct::density::{Reading, density};
 use rsasim::reconstruct::pipeline::METAL_BEAD_AREAS;
 
@@ -41,7 +51,88 @@ struct Tally {
     overlap_edge_on: usize,
     plate_edge: usize,
     border: usize,
-    other: usize,
+    /// The other misses, by the test that rejects them.
+    other: BTreeMap<Cause, usize>,
+}
+
+/// Why the detector misses a bead that no neighbour, plate edge or border explains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Cause {
+    Threshold,
+    LocalMaximum,
+    Metal,
+    Shape,
+    Centre,
+    FoundOff,
+}
+
+impl Cause {
+    const ALL: [Cause; 6] = [
+        Cause::Threshold,
+        Cause::LocalMaximum,
+        Cause::Metal,
+        Cause::Shape,
+        Cause::Centre,
+        Cause::FoundOff,
+    ];
+
+    /// The cause of a miss where the detector sees `probe` (`None`: no pixel's ring fits in the
+    /// image, so the window holds no bead: counted with the shapes).
+    fn of(probe: Option<&Probe>) -> Cause {
+        match probe.map(|p| p.verdict.as_ref().err()) {
+            None => Cause::Shape,
+            Some(None) => Cause::FoundOff,
+            Some(Some(Rejection::Threshold)) => Cause::Threshold,
+            Some(Some(Rejection::NotLocalMax)) => Cause::LocalMaximum,
+            Some(Some(Rejection::Metal)) => Cause::Metal,
+            Some(Some(Rejection::Background | Rejection::NoPeak | Rejection::Shape)) => {
+                Cause::Shape
+            }
+            Some(Some(Rejection::Centroid | Rejection::GaussianFit)) => Cause::Centre,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Cause::Threshold => "threshold",
+            Cause::LocalMaximum => "local maximum",
+            Cause::Metal => "metal",
+            Cause::Shape => "shape",
+            Cause::Centre => "centre",
+            Cause::FoundOff => "found off",
+        }
+    }
+}
+
+/// One "other" miss as a line of the `--list` table.
+fn list_row(
+    run: &str,
+    detector: &str,
+    bead: &str,
+    at: DVec2,
+    neighbour_px: f64,
+    seen: Option<&Probe>,
+) -> String {
+    let what = match seen {
+        None => " |  |  |  |  | no pixel whose ring fits".to_string(),
+        Some(p) => format!(
+            "({}, {}) | {:.1} | {:.3} | {:.3} | {:.4} | {}",
+            p.pixel[0],
+            p.pixel[1],
+            p.snr,
+            p.contrast,
+            p.background,
+            p.noise_sd,
+            match &p.verdict {
+                Ok(b) => format!("blob at ({:.2}, {:.2})", b.centroid.x, b.centroid.y),
+                Err(r) => format!("{r:?}"),
+            }
+        ),
+    };
+    format!(
+        "| {run} | {detector} | {bead} | ({:.2}, {:.2}) | {neighbour_px:.2} | {what} |",
+        at.x, at.y
+    )
 }
 
 /// Distance from `p` to the segment `a`–`b`.
@@ -52,8 +143,9 @@ fn to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
 }
 
 fn main() -> ExitCode {
-    let Some(out) = std::env::args().nth(1) else {
-        eprintln!("usage: missed_beads OUT");
+    let list = std::env::args().any(|a| a == "--list");
+    let Some(out) = std::env::args().skip(1).find(|a| a != "--list") else {
+        eprintln!("usage: missed_beads OUT [--list]");
         return ExitCode::from(2);
     };
     let out = Path::new(&out);
@@ -71,6 +163,7 @@ fn main() -> ExitCode {
         .collect();
     runs.sort();
     let mut program = String::new();
+    let mut listed: Vec<String> = Vec::new();
     for dir in runs {
         let truth: Truth =
             serde_json::from_slice(&std::fs::read(dir.join("truth.json")).unwrap()).unwrap();
@@ -224,7 +317,23 @@ fn main() -> ExitCode {
                 {
                     tally.border += 1;
                 } else {
-                    tally.other += 1;
+                    let seen = probe(&img, radius, &metal, at, 1.5);
+                    *tally.other.entry(Cause::of(seen.as_ref())).or_default() += 1;
+                    if list {
+                        let neighbour_px = all_beads
+                            .iter()
+                            .filter(|&&o| o != at)
+                            .map(|&o| (o - at).length())
+                            .fold(f64::INFINITY, f64::min);
+                        listed.push(list_row(
+                            &dir.file_name().unwrap().to_string_lossy(),
+                            &image.detector,
+                            &m.id,
+                            at,
+                            neighbour_px,
+                            seen.as_ref(),
+                        ));
+                    }
                 }
             }
         }
@@ -232,11 +341,20 @@ fn main() -> ExitCode {
     println!(
         "Command: `cargo run --release --example missed_beads -- OUT` on an output of {program}\n"
     );
+    let causes: Vec<&str> = Cause::ALL.iter().map(|c| c.name()).collect();
     println!(
-        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap (on a plate seen within 45° of edge-on) | plate edge | border | other |"
+        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap (on a plate seen within 45° of edge-on) | plate edge | border | other, rejected by: {} |",
+        causes.join(" | ")
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "|---|---:|---:|---:|---:|---:|---:|{}",
+        "---:|".repeat(causes.len())
+    );
     for (level, t) in &by_level {
+        let other: Vec<String> = Cause::ALL
+            .iter()
+            .map(|c| t.other.get(c).copied().unwrap_or(0).to_string())
+            .collect();
         println!(
             "| {level} | {} | {} | {} | {} ({}) | {} | {} | {} |",
             t.beads,
@@ -246,8 +364,17 @@ fn main() -> ExitCode {
             t.overlap_edge_on,
             t.plate_edge,
             t.border,
-            t.other
+            other.join(" | ")
         );
+    }
+    if list {
+        println!(
+            "\n| run | detector | bead | truth pixel | nearest bead, px | candidate pixel | SNR | response | background | tile noise | verdict |"
+        );
+        println!("|---|---|---|---|---:|---|---:|---:|---:|---:|---|");
+        for row in &listed {
+            println!("{row}");
+        }
     }
     ExitCode::SUCCESS
 }

@@ -13,7 +13,11 @@
 //! 3. **Candidates**: local maxima of the response over the excluded box, at least
 //!    [`MIN_SNR`] times the response's noise: tile noise × √(1/N_box + 1/N_ring) for white
 //!    noise, times the image's correlation factor (the median over tiles of the response's own
-//!    robust spread against that prediction, at least 1), which a detector PSF raises.
+//!    robust spread against that prediction, at least 1), which a detector PSF raises. The
+//!    maximum is taken of the response itself, not of the signal-to-noise ratio: the tile noise
+//!    steps at tile borders (a tile across an oblique plate's gradient reads the gradient as
+//!    noise, ten times a flat tile's), and the ratio's maximum would then sit on the quiet side
+//!    of the border, pixels off the bead.
 //! 4. **Shape**: the pixels above half the candidate's peak absorbed fraction
 //!    (`1 − S/S_background`, in which blur is linear) connected to it must stay inside the
 //!    window (a plate's edge or a bone ridge runs out of it) — their count is the blob's area,
@@ -215,77 +219,224 @@ pub fn find_beads(img: &Density, radius_px: f64, metal: &[bool]) -> Vec<Blob> {
 
 /// [`find_beads`] with the centre measured by `centre`.
 pub fn find_beads_by(img: &Density, radius_px: f64, metal: &[bool], how: Centre) -> Vec<Blob> {
-    let (w, h) = (img.width, img.height);
-    let s = Scale::of(radius_px);
-    if w < 2 * s.outer + 3 || h < 2 * s.outer + 3 || metal.len() != w * h {
+    let Some(filter) = Filtered::of(img, radius_px, metal) else {
         return Vec::new();
-    }
-    let integral = Integral::new(&img.values, w, h);
-    let (noise, tiles_x) = tile_noise(img);
-    let n_in = ((2 * s.inner + 1) * (2 * s.inner + 1)) as f64;
-    let n_ring = ((2 * s.outer + 1).pow(2) - (2 * s.clear + 1).pow(2)) as f64;
-    let noise_factor = (1.0 / n_in + 1.0 / n_ring).sqrt();
-    // Matched filter response on every pixel whose ring fits.
-    let mut response = vec![0.0f64; w * h];
-    let (b, a, c) = (s.outer, s.inner, s.clear);
-    for j in b..h - b {
-        for i in b..w - b {
-            let inner = integral.sum(i - a, j - a, i + a + 1, j + a + 1) / n_in;
-            let outer = integral.sum(i - b, j - b, i + b + 1, j + b + 1);
-            let clear = integral.sum(i - c, j - c, i + c + 1, j + c + 1);
-            let ring = (outer - clear) / n_ring;
-            response[j * w + i] = inner - ring;
-        }
-    }
-    // The response's noise per tile: what white pixel noise would give, times the image's
-    // correlation factor. A detector PSF correlates neighbouring pixels: their differences then
-    // understate the noise, while box means average it away less than 1/√N, so white-noise
-    // arithmetic alone lets noise peaks through by the thousand. The factor is the median over
-    // tiles of the response's own robust spread against the white-noise prediction (at least 1):
-    // one number for the image, as the blur is, so a tile crowded with beads or plate edges does
-    // not raise its own threshold.
-    let spread = response_spread(&response, w, h, b, tiles_x);
-    let mut ratios: Vec<f64> = spread
-        .iter()
-        .zip(&noise)
-        .filter(|(s, _)| **s > 0.0)
-        .map(|(s, n)| s / (n * noise_factor))
-        .filter(|r| r.is_finite())
-        .collect();
-    let correlation = if ratios.is_empty() {
-        1.0
-    } else {
-        let mid = ratios.len() / 2;
-        ratios
-            .select_nth_unstable_by(mid, f64::total_cmp)
-            .1
-            .max(1.0)
     };
-    let mut snr = vec![0.0f64; w * h];
-    for j in b..h - b {
-        for i in b..w - b {
-            let sd = noise[(j / TILE) * tiles_x + i / TILE] * noise_factor * correlation;
-            snr[j * w + i] = response[j * w + i] / sd;
-        }
-    }
+    let b = filter.scale.outer;
     let mut out = Vec::new();
-    for j in b..h - b {
-        for i in b..w - b {
-            let v = snr[j * w + i];
-            if !(v >= MIN_SNR) || !is_local_max(&snr, w, h, i, j, c) {
+    for j in b..img.height - b {
+        for i in b..img.width - b {
+            // The threshold first: it rejects nearly every pixel at no cost.
+            if !(filter.snr[j * img.width + i] >= MIN_SNR) {
                 continue;
             }
-            let at = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
-            if touches(metal, w, at, c as f64 + 1.0) {
-                continue;
-            }
-            let sd = noise[(j / TILE) * tiles_x + i / TILE];
-            if let Some(blob) = measure(img, i, j, s, sd, how) {
+            if let Ok(blob) = filter.judge(img, metal, i, j, how) {
                 out.push(blob);
             }
         }
     }
     out
+}
+
+/// Why the detector does not report a bead at a pixel: the first of its tests the pixel fails,
+/// in the order [`find_beads`] applies them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rejection {
+    /// The matched filter's response is below [`MIN_SNR`] times its noise.
+    Threshold,
+    /// A stronger response lies within the excluded box (the bead and its blur).
+    NotLocalMax,
+    /// The window touches the metal shadow.
+    Metal,
+    /// No background plane could be fitted to the ring.
+    Background,
+    /// The absorbed fraction at the peak is not above the ring's background.
+    NoPeak,
+    /// The half-maximum region runs out of the window (an edge or a ridge, not a bead).
+    Shape,
+    /// The intensity centroid has no positive weight, or drifts more than 1.5 px.
+    Centroid,
+    /// The Gaussian fit fails or moves more than 1 px from the centroid.
+    GaussianFit,
+}
+
+/// What the detector sees at one place of an image ([`probe`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    /// The pixel (column, row) of the largest signal-to-noise within the search radius: the
+    /// candidate the detector judges there.
+    pub pixel: [usize; 2],
+    /// Its matched filter's signal-to-noise ratio (the threshold is [`MIN_SNR`]).
+    pub snr: f64,
+    /// Its matched filter's response: the inner box's mean attenuation minus the ring's.
+    pub contrast: f64,
+    /// The ring's mean attenuation (the background the bead lies on).
+    pub background: f64,
+    /// The noise standard deviation of one pixel's attenuation in its tile.
+    pub noise_sd: f64,
+    /// The blob reported, or the first test the candidate fails.
+    pub verdict: Result<Blob, Rejection>,
+}
+
+/// What [`find_beads`] (Gaussian-fit centres) sees within `search_px` of `uv` (continuous
+/// pixel coordinates): the pixel of the largest signal-to-noise there, and the blob it reports
+/// or the test that rejects it. `None` when no pixel's ring fits in the image within the search
+/// radius.
+pub fn probe(
+    img: &Density,
+    radius_px: f64,
+    metal: &[bool],
+    uv: DVec2,
+    search_px: f64,
+) -> Option<Probe> {
+    let filter = Filtered::of(img, radius_px, metal)?;
+    let [i, j] = filter.strongest_near(img, uv, search_px)?;
+    let k = j * img.width + i;
+    let verdict = if filter.snr[k] >= MIN_SNR {
+        filter.judge(img, metal, i, j, Centre::default())
+    } else {
+        Err(Rejection::Threshold)
+    };
+    Some(Probe {
+        pixel: [i, j],
+        snr: filter.snr[k],
+        contrast: filter.response[k],
+        background: filter.ring_mean(img, i, j),
+        noise_sd: filter.tile_sd(i, j),
+        verdict,
+    })
+}
+
+/// An image's matched filter at a bead's scale ([`find_beads`], steps 1–3): its response and
+/// signal-to-noise ratio on every pixel whose ring fits (0 elsewhere), and the tile noise.
+struct Filtered {
+    scale: Scale,
+    integral: Integral,
+    response: Vec<f64>,
+    snr: Vec<f64>,
+    noise: Vec<f64>,
+    tiles_x: usize,
+}
+
+impl Filtered {
+    /// The filter of `img` for beads of radius `radius_px`; `None` when the image is smaller
+    /// than the filter or `metal` is not the image's size.
+    fn of(img: &Density, radius_px: f64, metal: &[bool]) -> Option<Filtered> {
+        let (w, h) = (img.width, img.height);
+        let s = Scale::of(radius_px);
+        if w < 2 * s.outer + 3 || h < 2 * s.outer + 3 || metal.len() != w * h {
+            return None;
+        }
+        let integral = Integral::new(&img.values, w, h);
+        let (noise, tiles_x) = tile_noise(img);
+        let n_in = ((2 * s.inner + 1) * (2 * s.inner + 1)) as f64;
+        let n_ring = ((2 * s.outer + 1).pow(2) - (2 * s.clear + 1).pow(2)) as f64;
+        let noise_factor = (1.0 / n_in + 1.0 / n_ring).sqrt();
+        // Matched filter response on every pixel whose ring fits.
+        let mut response = vec![0.0f64; w * h];
+        let (b, a, c) = (s.outer, s.inner, s.clear);
+        for j in b..h - b {
+            for i in b..w - b {
+                let inner = integral.sum(i - a, j - a, i + a + 1, j + a + 1) / n_in;
+                let outer = integral.sum(i - b, j - b, i + b + 1, j + b + 1);
+                let clear = integral.sum(i - c, j - c, i + c + 1, j + c + 1);
+                let ring = (outer - clear) / n_ring;
+                response[j * w + i] = inner - ring;
+            }
+        }
+        // The response's noise per tile: what white pixel noise would give, times the image's
+        // correlation factor. A detector PSF correlates neighbouring pixels: their differences
+        // then understate the noise, while box means average it away less than 1/√N, so
+        // white-noise arithmetic alone lets noise peaks through by the thousand. The factor is
+        // the median over tiles of the response's own robust spread against the white-noise
+        // prediction (at least 1): one number for the image, as the blur is, so a tile crowded
+        // with beads or plate edges does not raise its own threshold.
+        let spread = response_spread(&response, w, h, b, tiles_x);
+        let mut ratios: Vec<f64> = spread
+            .iter()
+            .zip(&noise)
+            .filter(|(s, _)| **s > 0.0)
+            .map(|(s, n)| s / (n * noise_factor))
+            .filter(|r| r.is_finite())
+            .collect();
+        let correlation = if ratios.is_empty() {
+            1.0
+        } else {
+            let mid = ratios.len() / 2;
+            ratios
+                .select_nth_unstable_by(mid, f64::total_cmp)
+                .1
+                .max(1.0)
+        };
+        let mut snr = vec![0.0f64; w * h];
+        for j in b..h - b {
+            for i in b..w - b {
+                let sd = noise[(j / TILE) * tiles_x + i / TILE] * noise_factor * correlation;
+                snr[j * w + i] = response[j * w + i] / sd;
+            }
+        }
+        Some(Filtered {
+            scale: s,
+            integral,
+            response,
+            snr,
+            noise,
+            tiles_x,
+        })
+    }
+
+    /// The noise standard deviation of one pixel's attenuation in the tile of pixel (i, j).
+    fn tile_sd(&self, i: usize, j: usize) -> f64 {
+        self.noise[(j / TILE) * self.tiles_x + i / TILE]
+    }
+
+    /// The mean attenuation of the filter's ring around pixel (i, j), whose ring must fit.
+    fn ring_mean(&self, img: &Density, i: usize, j: usize) -> f64 {
+        let (b, c) = (self.scale.outer, self.scale.clear);
+        if i < b || j < b || i + b >= img.width || j + b >= img.height {
+            return f64::NAN;
+        }
+        let outer = self.integral.sum(i - b, j - b, i + b + 1, j + b + 1);
+        let clear = self.integral.sum(i - c, j - c, i + c + 1, j + c + 1);
+        let n_ring = ((2 * b + 1).pow(2) - (2 * c + 1).pow(2)) as f64;
+        (outer - clear) / n_ring
+    }
+
+    /// The pixel of the largest signal-to-noise ratio whose centre lies within `search_px` of
+    /// `uv`, among those whose ring fits.
+    fn strongest_near(&self, img: &Density, uv: DVec2, search_px: f64) -> Option<[usize; 2]> {
+        let b = self.scale.outer;
+        let lo = |c: f64, n: usize| ((c - search_px).floor().max(b as f64) as usize).min(n - b);
+        let hi = |c: f64, n: usize| ((c + search_px).ceil().max(0.0) as usize).min(n - b);
+        let (w, h) = (img.width, img.height);
+        (lo(uv.y, h)..hi(uv.y, h))
+            .flat_map(|j| (lo(uv.x, w)..hi(uv.x, w)).map(move |i| [i, j]))
+            .filter(|&[i, j]| {
+                (DVec2::new(i as f64 + 0.5, j as f64 + 0.5) - uv).length() <= search_px
+            })
+            .max_by(|&[a, b], &[c, d]| self.snr[b * w + a].total_cmp(&self.snr[d * w + c]))
+    }
+
+    /// The candidate at pixel (i, j), whose response passed the threshold: the blob, or the
+    /// first test (local maximum, metal, shape, centre) it fails.
+    fn judge(
+        &self,
+        img: &Density,
+        metal: &[bool],
+        i: usize,
+        j: usize,
+        how: Centre,
+    ) -> Result<Blob, Rejection> {
+        let (w, h, c) = (img.width, img.height, self.scale.clear);
+        if !is_local_max(&self.response, w, h, i, j, c) {
+            return Err(Rejection::NotLocalMax);
+        }
+        let at = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+        if touches(metal, w, at, c as f64 + 1.0) {
+            return Err(Rejection::Metal);
+        }
+        measure(img, i, j, self.scale, self.tile_sd(i, j), how)
+    }
 }
 
 /// The robust standard deviation (1.4826 × the median absolute deviation from the median) of the
@@ -326,13 +477,13 @@ fn response_spread(
     out
 }
 
-/// Whether `snr[j·w + i]` is the largest within the box of half-size `half` (ties go to the
+/// Whether `values[j·w + i]` is the largest within the box of half-size `half` (ties go to the
 /// first pixel in row-major order).
-fn is_local_max(snr: &[f64], w: usize, h: usize, i: usize, j: usize, half: usize) -> bool {
-    let v = snr[j * w + i];
+fn is_local_max(values: &[f64], w: usize, h: usize, i: usize, j: usize, half: usize) -> bool {
+    let v = values[j * w + i];
     for y in j.saturating_sub(half)..(j + half + 1).min(h) {
         for x in i.saturating_sub(half)..(i + half + 1).min(w) {
-            let u = snr[y * w + x];
+            let u = values[y * w + x];
             if u > v || (u == v && (y, x) < (j, i)) {
                 return false;
             }
@@ -391,8 +542,15 @@ fn fit_plane(pts: &[(f64, f64, f64)]) -> Option<[f64; 3]> {
 }
 
 /// The blob of the candidate at pixel (i, j): shape check, area and sub-pixel centre.
-fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) -> Option<Blob> {
-    let plane = ring_plane(img, i, j, s, sd)?;
+fn measure(
+    img: &Density,
+    i: usize,
+    j: usize,
+    s: Scale,
+    sd: f64,
+    how: Centre,
+) -> Result<Blob, Rejection> {
+    let plane = ring_plane(img, i, j, s, sd).ok_or(Rejection::Background)?;
     let (ci, cj) = (i as f64 + 0.5, j as f64 + 0.5);
     let excess = |x: usize, y: usize| {
         img.at(x, y)
@@ -417,7 +575,7 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
         }
     }
     if !(peak > 0.0) {
-        return None;
+        return Err(Rejection::NoPeak);
     }
     let half = 0.5 * peak;
     let mut inside = vec![false; side * side];
@@ -448,7 +606,7 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
             if lx < 0 || ly < 0 || lx >= side as i64 || ly >= side as i64 {
                 // The region reaches the window's edge: a ridge or an edge, not a bead.
                 if absorbed(nx as usize, ny as usize) >= half {
-                    return None;
+                    return Err(Rejection::Shape);
                 }
                 continue;
             }
@@ -477,18 +635,18 @@ fn measure(img: &Density, i: usize, j: usize, s: Scale, sd: f64, how: Centre) ->
             }
         }
         if !(sw > 0.0) {
-            return None;
+            return Err(Rejection::Centroid);
         }
         let next = DVec2::new(su / sw, sv / sw);
         if (next - DVec2::new(ci, cj)).length() > 1.5 {
-            return None;
+            return Err(Rejection::Centroid);
         }
         centre = next;
     }
     if how == Centre::GaussianFit {
-        centre = gaussian_fit(i, j, c, &excess, centre)?;
+        centre = gaussian_fit(i, j, c, &excess, centre).ok_or(Rejection::GaussianFit)?;
     }
-    Some(Blob {
+    Ok(Blob {
         centroid: centre,
         area,
         bbox,
@@ -629,6 +787,38 @@ mod tests {
                 "a blob off every bead: {f:?}"
             );
         }
+    }
+
+    /// Deterministic noise of about `amplitude` (uniform in ±amplitude/2) at pixel (i, j).
+    fn pseudo_noise(i: usize, j: usize, amplitude: f64) -> f64 {
+        let h = (i as u64 * 73_856_093) ^ (j as u64 * 19_349_663);
+        let u = (h.wrapping_mul(2_654_435_761) % 10_007) as f64 / 10_007.0;
+        amplitude * (u - 0.5)
+    }
+
+    #[test]
+    fn a_bead_at_the_end_of_a_ramp_beside_a_quiet_tile_is_found_at_its_centre() {
+        // An oblique plate's image: the background climbs 0.03 per pixel up to column 28, then
+        // stays flat. The ramp's tile (columns 0–31) reads the climb as noise, ten times the
+        // flat tile's: the signal-to-noise ratio jumps at column 32, two pixels from the bead.
+        let bead = DVec2::new(30.3, 48.4);
+        let mut img = scene(96, 96, &[bead], 2.3, 0.3);
+        for j in 0..96 {
+            for i in 0..96 {
+                let ramp = 0.03 * (i.min(28) as f64);
+                img.values[j * 96 + i] += ramp + pseudo_noise(i, j, 0.01);
+            }
+        }
+        let metal = vec![false; 96 * 96];
+        let found = find_beads(&img, 2.3, &metal);
+        let nearest = found
+            .iter()
+            .map(|f| (f.centroid - bead).length())
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest < 0.25, "nearest blob {nearest} px off: {found:?}");
+        let seen = probe(&img, 2.3, &metal, bead, 1.5).expect("inside the image");
+        assert_eq!(seen.pixel, [30, 48], "{seen:?}");
+        assert!(seen.verdict.is_ok(), "{seen:?}");
     }
 
     #[test]
