@@ -25,7 +25,7 @@
 
 use glam::DVec2;
 
-use super::detect::{Blob, fits_one_bead};
+use super::detect::{Blob, bead_area_px, fits_one_bead};
 
 /// Below this many noise standard deviations between the background and `I_max`, only pixels at
 /// `I_max` count as covered.
@@ -140,8 +140,9 @@ impl Levels {
 /// within `radius_px + `[`WINDOW_MARGIN_PX`] of it weighted by [`Levels::covered`], twice (the
 /// second time around the first's centre). A pixel counts for the blob whose centre is nearest
 /// (ties: the earlier blob) if it is one of the blob's own label's pixels, or unlabelled and not
-/// touching the pixels of an object that is not a bead (a mesh's shadow, an unresolved blob). Blobs that do not fit one bead ([`fits_one_bead`]) are left
-/// as they are, as is everything when [`Levels::only_full_pixels`].
+/// touching the pixels of an object that is not a bead (a mesh's shadow, an unresolved blob).
+/// Blobs that do not fit one bead ([`fits_one_bead`]) are left as they are, as is everything
+/// when [`Levels::only_full_pixels`].
 pub fn refine(
     blobs: &mut [(u32, Blob)],
     labels: &[u32],
@@ -155,7 +156,7 @@ pub fn refine(
     }
     let height = pixels.len() / width;
     let reach = radius_px + WINDOW_MARGIN_PX;
-    let area = std::f64::consts::PI * radius_px * radius_px;
+    let area = bead_area_px(radius_px);
     let beads: Vec<usize> = (0..blobs.len())
         .filter(|&k| fits_one_bead(blobs[k].1.area, area))
         .collect();

@@ -20,6 +20,11 @@ pub struct Blob {
     pub bbox: [u32; 4],
 }
 
+/// The area (pixels) of a bead image of `radius_px`.
+pub fn bead_area_px(radius_px: f64) -> f64 {
+    std::f64::consts::PI * radius_px * radius_px
+}
+
 /// The smallest and the largest pixel count of one bead's blob when a bead's image is expected
 /// to cover `expected_px` pixels: the pixel-centre sampling of a small disc, a magnification a
 /// few per cent off and motion blur all change the count.

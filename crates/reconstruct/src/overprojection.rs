@@ -36,7 +36,7 @@ mod tests {
         Prediction {
             index: 0,
             uv: DVec2::new(u, v),
-            expected_area: std::f64::consts::PI * radius_px * radius_px,
+            expected_area: crate::detect::bead_area_px(radius_px),
             group: 0,
         }
     }

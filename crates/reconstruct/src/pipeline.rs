@@ -12,7 +12,7 @@ use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
 use super::density::{Density, Reading, density};
-use super::detect::{Blob, fits_one_bead};
+use super::detect::{Blob, bead_area_px, fits_one_bead};
 use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline, nominal_blur_px};
 use super::edge_model::{EdgeModel, MetalTransmission};
 use super::model::View;
@@ -409,7 +409,7 @@ fn predict(
     frame.contains_pixel(uv).then_some(Prediction {
         index,
         uv,
-        expected_area: std::f64::consts::PI * radius_px * radius_px,
+        expected_area: bead_area_px(radius_px),
         group,
     })
 }
@@ -548,7 +548,7 @@ impl BeadImage {
             };
         }
         let img = density(pixels, width, Reading::of(imaging, det.i_max()));
-        let bead_area = std::f64::consts::PI * radius_px * radius_px;
+        let bead_area = bead_area_px(radius_px);
         let min_area = (METAL_BEAD_AREAS * bead_area).max(50.0) as usize;
         let metal = match implant {
             Some(i) => implant_metal_mask(&img, min_area, i.expected_area_px),
@@ -677,7 +677,7 @@ fn find_model(
         let z = frame.pose.to_local(nominal_position_mm).z;
         let diameter = beads.iter().map(|b| b.diameter_mm).fold(0.0, f64::max);
         let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
-        let expected = std::f64::consts::PI * radius_px * radius_px;
+        let expected = bead_area_px(radius_px);
         let image = BeadImage::read(
             setup,
             det,

@@ -30,7 +30,9 @@
 use glam::DVec2;
 
 use super::bead_centre::{Levels, refine};
-use super::detect::{Blob, components_at_least, fits_one_bead, one_bead_area_range_px};
+use super::detect::{
+    Blob, bead_area_px, components_at_least, fits_one_bead, one_bead_area_range_px,
+};
 
 /// Bead images of a smaller radius (pixels) are never split.
 pub const MIN_RADIUS_PX: f64 = 1.3;
@@ -70,11 +72,6 @@ pub fn bead_blobs(pixels: &[u16], width: usize, i_max: u16, radius_px: f64) -> V
     }
     refine(&mut out, &labels, pixels, width, &levels, radius_px);
     out.into_iter().map(|(_, b)| b).collect()
-}
-
-/// The area (pixels) of a bead image of `radius_px`.
-fn bead_area_px(radius_px: f64) -> f64 {
-    std::f64::consts::PI * radius_px * radius_px
 }
 
 /// What a blob of at least [`PAIR_MIN_AREAS`] bead areas is.
