@@ -5,7 +5,7 @@
 use glam::DVec3;
 
 use crate::geometry::point_triangle_distance;
-use crate::phantom::TriMesh;
+use crate::trace::{MeshBvh, columns};
 
 /// A sphere against a solid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,35 +64,37 @@ pub fn in_cylinder(centre: DVec3, radius_mm: f64, radii: [f64; 2], half_length: 
 }
 
 /// A sphere (centre in the mesh's frame, mm) against a closed mesh: the centre's side by the
-/// parity of crossings of a ray (a fixed, irrational direction, so it misses edges and vertices
-/// of any practical mesh), the distance to the surface as the least distance to a triangle (only
-/// triangles whose bounding box comes within the radius are measured: only a distance below the
-/// radius decides anything).
-pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &TriMesh) -> Placement {
-    let dir = DVec3::new(
-        0.577_215_664_901_532_9,
-        std::f64::consts::LOG10_2,
-        0.759_134_453_1,
-    )
-    .normalize();
-    let mut crossings = 0u32;
+/// parity of crossings of a ray (along [`columns::DIRECTION`], fixed and irrational, so it misses
+/// edges and vertices of any practical mesh), the distance to the surface as the least distance to
+/// a triangle (only triangles whose bounding box comes within the radius are measured: only a
+/// distance below the radius decides anything). The mesh's column index ([`columns`]) lists the
+/// triangles either test can accept; the others are not looked at, which changes no answer.
+pub fn in_mesh(centre: DVec3, radius_mm: f64, mesh: &MeshBvh) -> Placement {
+    let dir = columns::DIRECTION.normalize();
+    let v = |i: u32| mesh.vertices_mm[i as usize];
+    let corners = |t: u32| mesh.faces[t as usize].map(v);
+    let crossings = mesh
+        .columns
+        .along(centre)
+        .iter()
+        .filter(|&&t| {
+            let [a, b, c] = corners(t);
+            ray_hits(centre, dir, a, b, c)
+        })
+        .count();
     let mut distance = f64::INFINITY;
-    let v = |i: u32| DVec3::from_array(mesh.vertices[i as usize].map(f64::from));
     // Only `distance < radius` matters: a triangle whose bounding box lies farther than the
     // radius (with a relative margin far above the distance's rounding) cannot change it, so its
     // exact distance is not computed.
     let reach2 = radius_mm * radius_mm * (1.0 + 1e-9);
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(v);
-        if ray_hits(centre, dir, a, b, c) {
-            crossings += 1;
-        }
+    mesh.columns.near(centre, radius_mm, |t| {
+        let [a, b, c] = corners(t);
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
         let gap = (lo - centre).max(centre - hi).max(DVec3::ZERO);
         if gap.length_squared() <= reach2 {
             distance = distance.min(point_triangle_distance(centre, a, b, c));
         }
-    }
+    });
     place(crossings % 2 == 1, distance, radius_mm)
 }
 
@@ -121,6 +123,7 @@ fn ray_hits(o: DVec3, d: DVec3, a: DVec3, b: DVec3, c: DVec3) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::phantom::TriMesh;
 
     #[test]
     fn cuboid_placement_is_exact() {
@@ -167,27 +170,65 @@ mod tests {
     /// Measuring only the triangles whose box comes within the radius gives the placement of
     /// measuring every triangle, for centres all around a coarse sphere's surface (where the
     /// nearest triangle decides between inside, across and outside).
+    /// The placement from every triangle: parity of all crossings, least of all distances.
+    fn every_triangle(m: &TriMesh, centre: DVec3, r: f64) -> Placement {
+        let v = |i: u32| DVec3::from_array(m.vertices[i as usize].map(f64::from));
+        let dir = columns::DIRECTION.normalize();
+        let mut crossings = 0;
+        let mut distance = f64::INFINITY;
+        for t in &m.triangles {
+            let [a, b, c] = t.map(v);
+            crossings += usize::from(ray_hits(centre, dir, a, b, c));
+            distance = distance.min(point_triangle_distance(centre, a, b, c));
+        }
+        place(crossings % 2 == 1, distance, r)
+    }
+
+    #[test]
+    fn indexed_placement_is_that_of_every_triangle() {
+        // A coarse and a fine sphere, and the shipped femoral component (its mesh is what beads
+        // are placed against in the realistic scenarios), at points inside, across and outside.
+        let knee = crate::phantom::mesh_io::load_mesh(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../scenarios/models/distal_femur_cortical.glb")
+                .as_path(),
+            1000.0,
+        )
+        .expect("shipped model");
+        let (lo, hi) = knee.bounds_mm();
+        let ball = (DVec3::splat(-12.0), DVec3::splat(12.0));
+        for (m, span, points) in [
+            (TriMesh::uv_sphere(10.0, 12, 24), ball, 3000),
+            (TriMesh::uv_sphere(10.0, 64, 128), ball, 1000),
+            (knee, (lo, hi), 400),
+        ] {
+            let bvh = MeshBvh::new(&m);
+            let mut seen = [0usize; 3];
+            for i in 0..points {
+                let f = |k: u32| f64::from((i * k) % 1009) / 1009.0;
+                let t = DVec3::new(f(7), f(13), f(29));
+                let centre = span.0 + (span.1 - span.0) * t;
+                for r in [0.0, 0.5, 3.0] {
+                    let p = in_mesh(centre, r, &bvh);
+                    assert_eq!(p, every_triangle(&m, centre, r), "centre {centre}, r {r}");
+                    seen[p as usize] += 1;
+                }
+            }
+            assert!(seen.iter().all(|&n| n > 30), "{seen:?}");
+        }
+    }
+
     #[test]
     fn pruned_distances_give_the_placement_of_all_distances() {
         let m = TriMesh::uv_sphere(10.0, 12, 24);
-        let all = |centre: DVec3, r: f64| {
-            let v = |i: u32| DVec3::from_array(m.vertices[i as usize].map(f64::from));
-            let distance = m
-                .triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(v);
-                    point_triangle_distance(centre, a, b, c)
-                })
-                .fold(f64::INFINITY, f64::min);
-            place(in_mesh(centre, 0.0, &m) != Placement::Outside, distance, r)
-        };
+        let bvh = MeshBvh::new(&m);
+        let all = |centre: DVec3, r: f64| every_triangle(&m, centre, r);
         let mut seen = [0usize; 3];
         for i in 0..4000u32 {
             let (theta, phi) = (0.7853 * f64::from(i % 97), 0.0311 * f64::from(i % 101));
             let dir = DVec3::new(phi.sin() * theta.cos(), phi.sin() * theta.sin(), phi.cos());
             let centre = dir * (8.8 + 2.4 * f64::from(i) / 4000.0);
-            let p = in_mesh(centre, 0.5, &m);
+            let p = in_mesh(centre, 0.5, &bvh);
             assert_eq!(p, all(centre, 0.5), "centre {centre}");
             seen[p as usize] += 1;
         }
@@ -197,7 +238,7 @@ mod tests {
     #[test]
     fn mesh_placement_matches_the_sphere_it_approximates() {
         // A fine UV sphere of radius 10: its surface lies within 0.02 mm of the true sphere.
-        let m = TriMesh::uv_sphere(10.0, 64, 128);
+        let m = MeshBvh::new(&TriMesh::uv_sphere(10.0, 64, 128));
         assert_eq!(
             in_mesh(DVec3::new(0.0, 0.0, 0.0), 0.5, &m),
             Placement::Inside

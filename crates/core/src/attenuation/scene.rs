@@ -135,11 +135,7 @@ pub fn parts<'a>(
                             // Clear of the mesh's bounding box: outside, no triangle to test.
                             Placement::Outside
                         } else {
-                            let mesh = models[parts[vi].phantom]
-                                .mesh
-                                .as_ref()
-                                .expect("mesh volume");
-                            containment::in_mesh(local, r, mesh)
+                            containment::in_mesh(local, r, bvh)
                         }
                     }
                     Object::Cuboid { pose, half_size_mm } => {

@@ -10,6 +10,7 @@ use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
 
+use super::columns::Columns;
 use super::raster::Faces;
 use super::watertight::ShearedRay;
 use crate::phantom::TriMesh;
@@ -22,10 +23,12 @@ pub struct MeshBvh {
     triangles: Vec<Triangle>,
     /// Local bounds (min, max), mm.
     pub bounds_mm: (DVec3, DVec3),
-    /// The mesh's vertices in its local frame, mm (for scan conversion).
-    pub(super) vertices_mm: Vec<DVec3>,
+    /// The mesh's vertices in its local frame, mm (for scan conversion and containment).
+    pub(crate) vertices_mm: Vec<DVec3>,
     /// The mesh's triangles as indices into `vertices_mm`, in the mesh's order and winding.
-    pub(super) faces: Vec<[u32; 3]>,
+    pub(crate) faces: Vec<[u32; 3]>,
+    /// The triangles binned along [`super::columns::DIRECTION`] (for containment).
+    pub(crate) columns: Columns,
     /// Which projected triangles scan conversion must fill (see [`Faces`]).
     pub(super) facing: Faces,
 }
@@ -60,15 +63,17 @@ impl MeshBvh {
             Ok(()) => Faces::Inward,
             Err(_) => Faces::All,
         };
+        let vertices_mm: Vec<DVec3> = mesh
+            .vertices
+            .iter()
+            .map(|v| DVec3::from_array(v.map(f64::from)))
+            .collect();
         MeshBvh {
             bvh,
             triangles,
             bounds_mm: mesh.bounds_mm(),
-            vertices_mm: mesh
-                .vertices
-                .iter()
-                .map(|v| DVec3::from_array(v.map(f64::from)))
-                .collect(),
+            columns: Columns::new(&vertices_mm, &mesh.triangles),
+            vertices_mm,
             faces: mesh.triangles.clone(),
             facing,
         }

@@ -21,6 +21,7 @@
 //! projections, so the corners' pixel rectangle bounds the object's shadow).
 
 mod chord_row;
+pub(crate) mod columns;
 mod crossings;
 mod mesh_bvh;
 mod path_length;
