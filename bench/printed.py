@@ -25,6 +25,9 @@ load average at the start and at the end.
                                             #   gVirtualXray) -> attenuation-speed.md
     bench/printed.py first-run-cost         # bench/first_run.sh: a fresh clone's first build,
                                             #   run and test -> first-run-cost.md
+    bench/printed.py protocols [--rounds N] [--baseline BIN]   # the binary, realistic and
+                                            #   blurred protocols on 10-run shards, alternated with
+                                            #   an older build -> protocols-speed.md
 
 Tests run from the release integration-test binary (`cargo test --release --locked --test
 integration`), so one build serves every test table; RSASIM_TEST_BIN names that executable to run
@@ -319,6 +322,66 @@ def cmd_attenuation_speed(args):
                "in bench/results/attenuation/); gVXR on the same machine")
 
 
+# Issue 32's targets for the realistic protocols against the binary one (10-run copies).
+PROTOCOL_TARGET = {"biplanar_realistic": "≤ 2.5", "biplanar_realistic_blurred": "≤ 8"}
+PROTOCOLS = ("biplanar", "biplanar_realistic", "biplanar_realistic_blurred")
+
+
+def timed(binary, scenario, out):
+    """Wall, CPU (user + system) seconds and peak RSS (kB) of one simulation of SHARD runs."""
+    shutil.rmtree(out, ignore_errors=True)
+    with tempfile.NamedTemporaryFile("r") as t:
+        run(["/usr/bin/time", "-o", t.name, "-f", "%e %U %S %M", str(binary), f"scenarios/{scenario}.toml",
+             "--out", str(out), "--shard", "0/10"])
+        wall, user, system, rss = t.read().split()[-4:]
+    shutil.rmtree(out, ignore_errors=True)
+    return float(wall), float(user) + float(system), int(rss)
+
+
+def cmd_protocols(args):
+    binary = stamp.release_binary()
+    baseline = pathlib.Path(args.baseline).resolve() if args.baseline else None
+    root = pathlib.Path("/dev/shm") if pathlib.Path("/dev/shm").is_dir() else pathlib.Path(tempfile.gettempdir())
+    out = pathlib.Path(tempfile.mkdtemp(dir=root, prefix="rsasim-protocols."))
+    start = stamp.load()
+    mine = {s: [] for s in PROTOCOLS}
+    theirs = {s: [] for s in PROTOCOLS}
+    try:
+        for r in range(args.rounds):
+            for s in PROTOCOLS:
+                # This build and the baseline alternate, so both see the same load.
+                mine[s].append(timed(binary, s, out / "a"))
+                log(f"round {r + 1} {s}: {mine[s][-1]}")
+                if baseline:
+                    theirs[s].append(timed(baseline, s, out / "b"))
+                    log(f"round {r + 1} {s}, baseline: {theirs[s][-1]}")
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    med = lambda v: sorted(v)[len(v) // 2]  # noqa: E731 (median of an odd count)
+    head = "| scenario (`--shard 0/10`: 10 runs, 80 files) | wall | CPU | peak RSS | ÷ binary, wall | ÷ binary, CPU | issue 32's target |"
+    rows = [head, "|---|---:|---:|---:|---:|---:|---|"]
+    if baseline:
+        rows[0] += " baseline wall | this ÷ baseline, wall |"
+        rows[1] += "---:|---:|"
+    for s in PROTOCOLS:
+        walls, cpus = [m[0] for m in mine[s]], [m[1] for m in mine[s]]
+        ratio_wall = med([a[0] / b[0] for a, b in zip(mine[s], mine["biplanar"])])
+        ratio_cpu = med([a[1] / b[1] for a, b in zip(mine[s], mine["biplanar"])])
+        row = (f"| `{s}.toml` | {med(walls):.2f} s | {med(cpus):.2f} s | {max(m[2] for m in mine[s]) / 1024:.0f} MB | "
+               f"{ratio_wall:.2f} | {ratio_cpu:.2f} | {PROTOCOL_TARGET.get(s, '')} |")
+        if baseline:
+            row += (f" {med([t[0] for t in theirs[s]]):.2f} s | "
+                    f"{med([a[0] / b[0] for a, b in zip(mine[s], theirs[s])]):.3f} |")
+        rows.append(row)
+    command = f"bench/printed.py protocols --rounds {args.rounds}" + (f" --baseline {args.baseline}" if baseline else "")
+    note = (f"medians over {args.rounds} rounds; in each round the three scenarios run one after the other"
+            + (" (each followed by the baseline binary)" if baseline else "")
+            + ", output on tmpfs; ratios are taken round by round, then their median")
+    if baseline:
+        note += f"; baseline: `{run([str(baseline), '--version']).strip()}`"
+    write(args, "protocols-speed.md", command, "\n".join(rows), binary, load_start=start, note=note)
+
+
 def cmd_first_run(args):
     start = stamp.load()
     text = run(["bash", "bench/first_run.sh"])
@@ -356,12 +419,16 @@ def main():
     p.add_argument("n", nargs="?", default="20000")
     p.add_argument("--only", default=None)
     sub.add_parser("attenuation-speed").add_argument("--venv", default=None)
+    p = sub.add_parser("protocols")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--baseline", default=None, help="an older rsasim binary, timed alternately")
     args = ap.parse_args()
     {
         "detection": cmd_detection, "bead-centres": cmd_bead_centres, "sampling": cmd_sampling,
         "adaptive": cmd_adaptive, "exr-encoders": cmd_exr_encoders,
         "detector-response": cmd_detector_response, "reconstruct-speed": cmd_reconstruct_speed,
         "fuzz": cmd_fuzz, "attenuation-speed": cmd_attenuation_speed, "first-run-cost": cmd_first_run,
+        "protocols": cmd_protocols,
     }[args.which](args)
 
 

@@ -11,7 +11,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::geometry::DetectorFrame;
-use crate::response::{self, Beam, DetectorModel, Expected, PointSourceFluence};
+use crate::response::{
+    self, Beam, DetectorModel, Expected, PixelMean, PointSourceFluence, RayMean, RayScratch,
+};
 use crate::sampling::strip::{STRIP_SAMPLES, add_blocks, strips, window};
 use crate::sampling::{Sampling, adaptive};
 use crate::trace::{Object, PathLengths, Projected};
@@ -106,9 +108,11 @@ pub fn expected_sharp(
 /// The same image by adaptive sampling (`crate::sampling::adaptive`): `sharp` is the expected
 /// image of one ray per pixel centre from the spot's centre (`shadows`: every part's path
 /// lengths on those rays, in part order). The pixels the refine mask marks get the mean over all
-/// their rays, computed in tiles of [`adaptive::TILE_PX`] pixels (sub-sources in order, then
-/// samples row by row, as [`expected`]); every other pixel keeps its sharp value. The heel factor
-/// then multiplies all three images, as in [`expected`].
+/// their rays, traced in tiles of [`adaptive::TILE_PX`] pixels (rays by sub-source in order,
+/// then samples row by row) and summed over the spectrum by [`RayMean::pixel`]: a third-order
+/// expansion about the rays' mean path lengths where its bound is within
+/// [`adaptive::TOLERANCE_NOISE_SD`], else every ray's exact sum. Every other pixel keeps its
+/// sharp value. The heel factor then multiplies all three images, as in [`expected`].
 pub fn expected_adaptive(
     exposure: &Exposure,
     shadows: &[Option<PathLengths>],
@@ -142,46 +146,38 @@ pub fn expected_adaptive(
         let fine = window(frame, 0, 0, w as u32, h as u32, s);
         let sources = sampling.sources(frame, source_mm);
         let cell = adaptive::TILE_PX * s;
-        // Sub-sources one after the other (each part projected once per sub-source, then every
-        // tile in parallel adds that sub-source's share): one sub-source's projections in memory.
-        let t = adaptive::TILE_PX as usize;
-        let mut means: Vec<[Vec<f64>; 3]> = tiles
+        // Every part projected once per sub-source, all held: a tile takes all its rays at once.
+        let projected: Vec<Vec<Projected>> = sources
             .iter()
-            .map(|&(i0, j0)| {
-                let n = t.min(w - i0 as usize) * t.min(h - j0 as usize);
-                [vec![0.0; n], vec![0.0; n], vec![0.0; n]]
+            .map(|&(src, _)| {
+                parts
+                    .par_iter()
+                    .map(|p| Projected::new(&fine, src, &p.object, cell))
+                    .collect()
             })
             .collect();
-        for &(src, weight) in &sources {
-            let projected: Vec<Projected> = parts
-                .par_iter()
-                .map(|p| Projected::new(&fine, src, &p.object, cell))
-                .collect();
-            let seen = Seen {
-                source_mm: src,
+        let seen: Vec<Seen> = sources
+            .iter()
+            .zip(&projected)
+            .map(|(&(source_mm, weight), projected)| Seen {
+                source_mm,
                 weight,
-                projected: &projected,
-            };
-            means
-                .par_iter_mut()
-                .zip(&tiles)
-                .for_each(|(sums, &(i0, j0))| {
-                    let tile = Tile { i0, j0, s };
-                    add_tile(exposure, beam, detector, &seen, &mask, tile, sums)
-                });
-        }
-        let t = adaptive::TILE_PX as usize;
-        for (&(i0, j0), [q, e, o]) in tiles.iter().zip(&means) {
-            let (i0, j0) = (i0 as usize, j0 as usize);
-            let tw = t.min(w - i0);
-            for (k, ((q, e), o)) in q.iter().zip(e).zip(o).enumerate() {
-                let p = (j0 + k / tw) * w + i0 + k % tw;
-                if mask[p] {
-                    out.quanta[p] = *q;
-                    out.energy_kev[p] = *e;
-                    out.open_signal[p] = *o;
-                }
-            }
+                projected,
+            })
+            .collect();
+        let rays = RayMean::new(beam, detector, &exposure.setup.mu_per_mm);
+        let open = response::open_signal_per_fluence(detector, beam);
+        let refined: Vec<Vec<(usize, PixelMean, f64)>> = tiles
+            .par_iter()
+            .map_init(TileScratch::default, |scratch, &(i0, j0)| {
+                let tile = Tile { i0, j0, s };
+                refine_tile(exposure, &seen, &mask, tile, &rays, scratch)
+            })
+            .collect();
+        for (p, mean, weight) in refined.into_iter().flatten() {
+            out.quanta[p] = mean.quanta;
+            out.energy_kev[p] = mean.energy_kev;
+            out.open_signal[p] = weight * open;
         }
     }
     if let Some(heel) = &sampling.heel {
@@ -211,19 +207,30 @@ struct Tile {
     s: u32,
 }
 
-/// Adds one sub-source's share of the mean over all rays to the pixels of `tile`: quanta, energy
-/// and open signal in `sums`, row-major over the tile. Only pixels of `mask` are traced; the
-/// others get their open-field value (not used). The sub-source is `seen`'s, not the exposure's
-/// spot centre.
-fn add_tile(
+/// Buffers of one worker, reused from tile to tile.
+#[derive(Default)]
+struct TileScratch {
+    /// One sub-source's rays over the tile's samples: lengths `[sample][material]`, fluence.
+    lengths: Vec<f64>,
+    fluence: Vec<f64>,
+    /// Every ray of every pixel of the tile: `[pixel][ray][material]` and `[pixel][ray]`, rays
+    /// by sub-source, then sample row by row.
+    pixel_lengths: Vec<f64>,
+    pixel_weights: Vec<f64>,
+    rays: RayScratch,
+}
+
+/// The mean over all rays of every pixel of `tile` that `mask` marks, as (pixel index in the
+/// image, its quanta and energy, the sum of its rays' weights); rays by sub-source in order,
+/// then samples row by row. Only marked pixels are traced.
+fn refine_tile(
     exposure: &Exposure,
-    beam: &Beam,
-    detector: &DetectorModel,
-    seen: &Seen,
+    seen: &[Seen],
     mask: &[bool],
     tile: Tile,
-    sums: &mut [Vec<f64>; 3],
-) {
+    rays: &RayMean,
+    scratch: &mut TileScratch,
+) -> Vec<(usize, PixelMean, f64)> {
     let Exposure {
         setup,
         parts,
@@ -236,29 +243,68 @@ fn add_tile(
     let (tw, th) = (t.min(w - i0), t.min(h - j0));
     let (columns, rows) = (i0 * s..(i0 + tw) * s, j0 * s..(j0 + th) * s);
     let wanted = |fi: u32, fj: u32| mask[(fj / s) as usize * w as usize + (fi / s) as usize];
-    // The parts' lengths over the tile's samples, in the tile's own pixel coordinates.
-    let shadows: Vec<Option<PathLengths>> = seen
-        .projected
-        .iter()
-        .map(|p| {
-            p.window(columns.clone(), rows.clone(), &wanted)
-                .map(|pl| PathLengths {
-                    columns: 0..tw * s,
-                    rows: 0..th * s,
-                    length_mm: pl.length_mm,
-                })
-        })
-        .collect();
-    let layers = layers_of(parts, &shadows);
-    let tile_frame = window(frame, i0, j0, tw, th, s);
-    let fluence = PointSourceFluence::new(&tile_frame, seen.source_mm);
-    let scene = scene_of(setup, &tile_frame, &layers, &fluence);
-    let fine = response::expected(beam, detector, &scene);
-    let k = seen.weight / f64::from(s * s);
-    let (s, tw) = (s as usize, tw as usize);
-    add_blocks(&fine.quanta, tw, s, k, &mut sums[0]);
-    add_blocks(&fine.energy_kev, tw, s, k, &mut sums[1]);
-    add_blocks(&fine.open_signal, tw, s, k, &mut sums[2]);
+    let m_all = rays.materials();
+    let (s, tw_u, th_u) = (s as usize, tw as usize, th as usize);
+    let per_pixel = s * s * seen.len();
+    let pixels = tw_u * th_u;
+    let TileScratch {
+        lengths,
+        fluence,
+        pixel_lengths,
+        pixel_weights,
+        rays: ray_scratch,
+    } = scratch;
+    // Every slot is written below (each sample of each sub-source once): no clearing needed.
+    pixel_lengths.resize(pixels * per_pixel * m_all, 0.0);
+    pixel_weights.resize(pixels * per_pixel, 0.0);
+    let tile_frame = window(frame, i0, j0, tw, th, s as u32);
+    for (k, one) in seen.iter().enumerate() {
+        // The parts' lengths over the tile's samples, in the tile's own pixel coordinates.
+        let shadows: Vec<Option<PathLengths>> = one
+            .projected
+            .iter()
+            .map(|p| {
+                p.window(columns.clone(), rows.clone(), &wanted)
+                    .map(|pl| PathLengths {
+                        columns: 0..tw * s as u32,
+                        rows: 0..th * s as u32,
+                        length_mm: pl.length_mm,
+                    })
+            })
+            .collect();
+        let layers = layers_of(parts, &shadows);
+        let point = PointSourceFluence::new(&tile_frame, one.source_mm);
+        let scene = scene_of(setup, &tile_frame, &layers, &point);
+        response::rays_of(&scene, lengths, fluence);
+        let share = one.weight / (s * s) as f64;
+        let fw = tw_u * s;
+        for (q, &f) in fluence.iter().enumerate() {
+            let (fi, fj) = (q % fw, q / fw);
+            let pixel = (fj / s) * tw_u + fi / s;
+            let ray = k * s * s + (fj % s) * s + fi % s;
+            let r = pixel * per_pixel + ray;
+            pixel_weights[r] = share * f;
+            pixel_lengths[r * m_all..(r + 1) * m_all]
+                .copy_from_slice(&lengths[q * m_all..(q + 1) * m_all]);
+        }
+    }
+    let mut out = Vec::new();
+    for pixel in 0..pixels {
+        let (i, j) = (i0 as usize + pixel % tw_u, j0 as usize + pixel / tw_u);
+        let p = j * w as usize + i;
+        if !mask[p] {
+            continue;
+        }
+        let weights = &pixel_weights[pixel * per_pixel..(pixel + 1) * per_pixel];
+        let mean = rays.pixel(
+            &pixel_lengths[pixel * per_pixel * m_all..(pixel + 1) * per_pixel * m_all],
+            weights,
+            adaptive::TOLERANCE_NOISE_SD,
+            ray_scratch,
+        );
+        out.push((p, mean, weights.iter().fold(0.0, |a, &x| a + x)));
+    }
+    out
 }
 
 /// The footprint of the rays of a pixel ([`adaptive::Footprint`]) for the parts' depths: the

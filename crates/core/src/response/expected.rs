@@ -38,7 +38,7 @@ use super::exp::exp;
 /// held in registers (two AVX2 vectors of four lanes), so the exponent, the exponential and both
 /// sums of a block never leave the registers, and the independent lanes hide the latency of the
 /// exponential's polynomial.
-const LANES: usize = 8;
+pub(super) const LANES: usize = 8;
 
 /// Scratch buffers of one worker, reused from row to row.
 #[derive(Debug, Default)]
@@ -160,6 +160,38 @@ pub(super) fn row_expected(
     } else {
         covered_sums::<false>(&args, quanta, e);
     }
+}
+
+/// `v_i · Σ_b w_b · exp(−Σ_m μ_{m,b} · L_{m,i})` and `v_i · Σ_b w_b · e_b · exp(…)` of every
+/// ray i (`weights[i]` = v_i) into `quanta[i]` and `energy[i]`: the per-pixel sums of
+/// [`row_expected`] (same operations, same order, AVX2 where the CPU has it) over rays instead of
+/// a row's pixels. `mu` is `[b][slot]`, `lengths` `[block][slot][lane]` as [`row_expected`]
+/// gathers them, the last block padded with zeros.
+pub(super) fn ray_sums(
+    bins: &Bins,
+    mu: &[f64],
+    slots: usize,
+    lengths: &[f64],
+    weights: &[f64],
+    quanta: &mut [f64],
+    energy: &mut [f64],
+) {
+    let covered: Vec<usize> = (0..weights.len()).collect();
+    let args = Covered {
+        bins,
+        mu,
+        covered: &covered,
+        lengths,
+        slots,
+        fluence: weights,
+    };
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        unsafe { covered_sums_avx2::<true>(&args, quanta, energy) };
+        return;
+    }
+    covered_sums::<true>(&args, quanta, energy);
 }
 
 /// The covered pixels of one row, gathered by block (see [`row_expected`]).

@@ -81,6 +81,7 @@ mod image;
 mod layer;
 mod pipeline;
 pub mod psf;
+mod ray_mean;
 pub mod scatter;
 #[cfg(test)]
 mod tests;
@@ -92,6 +93,7 @@ pub use image::{Expected, expected, open_signal_per_fluence};
 pub use layer::{Layer, material_row, net_material_row};
 pub use pipeline::render_expected;
 pub use psf::{Psf, PsfShape};
+pub use ray_mean::{PixelMean, RayMean, RayScratch, rays_of};
 pub use scatter::Scatter;
 pub use unsharp::Unsharpness;
 
