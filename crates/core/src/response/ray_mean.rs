@@ -192,14 +192,16 @@ impl RayMean {
         }
         for a in 0..k {
             let dev = &s.dev[a * n..(a + 1) * n];
-            s.weighted.extend(dev.iter().zip(weights).map(|(d, w)| d * w));
+            s.weighted
+                .extend(dev.iter().zip(weights).map(|(d, w)| d * w));
         }
         s.spread.clear();
         s.fourth.clear();
         for a in 0..k {
             let dev = &s.dev[a * n..(a + 1) * n];
             let wd = &s.weighted[a * n..(a + 1) * n];
-            s.spread.push(dev.iter().fold(0.0f64, |x, d| x.max(d.abs())));
+            s.spread
+                .push(dev.iter().fold(0.0f64, |x, d| x.max(d.abs())));
             s.fourth.push(dot4(wd, dev, |d| d * d * d));
         }
         // Second and third moments over the pairs a ≤ b and triples a ≤ b ≤ c.
@@ -222,7 +224,13 @@ impl RayMean {
         }
         // Per bin: the exponent at the mean, the largest deviation, the fourth-moment bound, and
         // the second and third terms.
-        for buf in [&mut s.exponent, &mut s.reach, &mut s.quartic, &mut s.quad, &mut s.cube] {
+        for buf in [
+            &mut s.exponent,
+            &mut s.reach,
+            &mut s.quartic,
+            &mut s.quad,
+            &mut s.cube,
+        ] {
             buf.clear();
             buf.resize(nb, 0.0);
         }
