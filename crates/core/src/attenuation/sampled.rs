@@ -167,17 +167,17 @@ pub fn expected_adaptive(
             .collect();
         let rays = RayMean::new(beam, detector, &exposure.setup.mu_per_mm);
         let open = response::open_signal_per_fluence(detector, beam);
-        let refined: Vec<Vec<(usize, PixelMean, f64)>> = tiles
+        let refined: Vec<Vec<(usize, PixelMean)>> = tiles
             .par_iter()
             .map_init(TileScratch::default, |scratch, &(i0, j0)| {
                 let tile = Tile { i0, j0, s };
                 refine_tile(exposure, &seen, &mask, tile, &rays, scratch)
             })
             .collect();
-        for (p, mean, weight) in refined.into_iter().flatten() {
+        for (p, mean) in refined.into_iter().flatten() {
             out.quanta[p] = mean.quanta;
             out.energy_kev[p] = mean.energy_kev;
-            out.open_signal[p] = weight * open;
+            out.open_signal[p] = mean.weight * open;
         }
     }
     if let Some(heel) = &sampling.heel {
@@ -221,8 +221,8 @@ struct TileScratch {
 }
 
 /// The mean over all rays of every pixel of `tile` that `mask` marks, as (pixel index in the
-/// image, its quanta and energy, the sum of its rays' weights); rays by sub-source in order,
-/// then samples row by row. Only marked pixels are traced.
+/// image, its [`PixelMean`]); rays by sub-source in order, then samples row by row. Only marked
+/// pixels are traced.
 fn refine_tile(
     exposure: &Exposure,
     seen: &[Seen],
@@ -230,7 +230,7 @@ fn refine_tile(
     tile: Tile,
     rays: &RayMean,
     scratch: &mut TileScratch,
-) -> Vec<(usize, PixelMean, f64)> {
+) -> Vec<(usize, PixelMean)> {
     let Exposure {
         setup,
         parts,
@@ -295,14 +295,13 @@ fn refine_tile(
         if !mask[p] {
             continue;
         }
-        let weights = &pixel_weights[pixel * per_pixel..(pixel + 1) * per_pixel];
         let mean = rays.pixel(
             &pixel_lengths[pixel * per_pixel * m_all..(pixel + 1) * per_pixel * m_all],
-            weights,
+            &pixel_weights[pixel * per_pixel..(pixel + 1) * per_pixel],
             adaptive::TOLERANCE_NOISE_SD,
             ray_scratch,
         );
-        out.push((p, mean, weights.iter().fold(0.0, |a, &x| a + x)));
+        out.push((p, mean));
     }
     out
 }

@@ -48,7 +48,9 @@ pub struct PixelMean {
     pub quanta: f64,
     /// Expected detected energy E, keV.
     pub energy_kev: f64,
-    /// Whether the second-order expansion gave them (else the sum over every ray).
+    /// The sum of the rays' weights `V` (what the open field scales by).
+    pub weight: f64,
+    /// Whether the expansion gave them (else the sum over every ray).
     pub expanded: bool,
 }
 
@@ -157,6 +159,7 @@ impl RayMean {
         PixelMean {
             quanta: s.quanta.iter().fold(0.0, |a, &x| a + x),
             energy_kev: s.energy.iter().fold(0.0, |a, &x| a + x),
+            weight: v,
             expanded: false,
         }
     }
@@ -291,6 +294,7 @@ impl RayMean {
         ok.then_some(PixelMean {
             quanta: q,
             energy_kev: e,
+            weight: v,
             expanded: true,
         })
     }
