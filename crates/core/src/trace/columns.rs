@@ -73,19 +73,38 @@ impl Columns {
             lo = [0.0; 2];
             hi = [0.0; 2];
         }
-        // About one triangle per cell on a closed surface's two sheets, at most 1024² cells.
-        let side = ((rects.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+        // About one triangle per cell on a closed surface's two sheets, at most 1024² cells. A
+        // mesh of large overlapping triangles (each over many cells) gets a coarser grid, so that
+        // the entries stay within `MAX_ENTRIES_PER_TRIANGLE` per triangle: counted per
+        // rectangle without visiting its cells, so no mesh makes this slow or large.
         let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(MARGIN_MM);
-        let cell_mm = extent / side as f64;
-        let n = [0, 1].map(|k| (((hi[k] - lo[k]) / cell_mm).floor() as usize + 1).min(side));
-        let mut out = Columns {
-            axes,
-            origin_mm: lo,
-            cell_mm,
-            n,
-            start: Vec::new(),
-            items: Vec::new(),
+        let mut side = ((rects.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+        let budget = MAX_ENTRIES_PER_TRIANGLE * rects.len() as u64 + 4096;
+        let mut out = loop {
+            let cell_mm = extent / side as f64;
+            let n = [0, 1].map(|k| (((hi[k] - lo[k]) / cell_mm).floor() as usize + 1).min(side));
+            let grid = Columns {
+                axes,
+                origin_mm: lo,
+                cell_mm,
+                n,
+                start: Vec::new(),
+                items: Vec::new(),
+            };
+            let entries: u64 = rects
+                .iter()
+                .map(|r| {
+                    let span =
+                        |k: usize| (grid.cell(k, r[1][k]) - grid.cell(k, r[0][k]) + 1) as u64;
+                    span(0) * span(1)
+                })
+                .sum();
+            if entries <= budget || side == 1 {
+                break grid;
+            }
+            side = side.div_ceil(2);
         };
+        let n = out.n;
         let mut counts = vec![0u32; n[0] * n[1] + 1];
         for r in &rects {
             out.for_cells(r[0], r[1], |c| counts[c] += 1);
@@ -166,6 +185,10 @@ impl Columns {
     }
 }
 
+/// The most cell entries per triangle, on average, before the grid is made coarser (a closed
+/// mesh's small triangles take 1–4 each).
+const MAX_ENTRIES_PER_TRIANGLE: u64 = 16;
+
 /// Relative widening of every rectangle and query: far above the rounding of a projection
 /// (a few units of 10⁻¹⁶ of the coordinates).
 const MARGIN_REL: f64 = 1e-9;
@@ -215,5 +238,35 @@ mod tests {
             }
         }
         assert!(crossed > 1000, "{crossed}");
+    }
+
+    /// A hostile mesh: many large triangles over one another, each across the whole grid a
+    /// closed mesh of that many triangles would get. The grid coarsens, the entries stay within
+    /// their budget, and every triangle a ray crosses is still listed.
+    #[test]
+    fn overlapping_large_triangles_coarsen_the_grid() {
+        let n = 20_000u32;
+        let mut v = Vec::new();
+        let mut faces = Vec::new();
+        for t in 0..n {
+            let z = f64::from(t) * 0.001;
+            let k = v.len() as u32;
+            v.extend([
+                DVec3::new(-100.0, -100.0, z),
+                DVec3::new(100.0, -100.0, z),
+                DVec3::new(0.0, 100.0, z),
+            ]);
+            faces.push([k, k + 1, k + 2]);
+        }
+        let start = std::time::Instant::now();
+        let cols = Columns::new(&v, &faces);
+        assert!(
+            cols.items.len() as u64 <= MAX_ENTRIES_PER_TRIANGLE * u64::from(n) + 4096,
+            "{} entries",
+            cols.items.len()
+        );
+        assert!(start.elapsed().as_secs() < 10, "{:?}", start.elapsed());
+        // A point below every sheet: its ray (z component > 0) crosses them all.
+        assert_eq!(cols.along(DVec3::new(0.0, 0.0, -1.0)).len(), n as usize);
     }
 }
