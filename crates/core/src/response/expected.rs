@@ -143,23 +143,7 @@ pub(super) fn row_expected(
         slots,
         fluence,
     };
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (checked just above).
-        unsafe {
-            if with_energy {
-                covered_sums_avx2::<true>(&args, quanta, e);
-            } else {
-                covered_sums_avx2::<false>(&args, quanta, e);
-            }
-        }
-        return;
-    }
-    if with_energy {
-        covered_sums::<true>(&args, quanta, e);
-    } else {
-        covered_sums::<false>(&args, quanta, e);
-    }
+    args.sums(with_energy, quanta, e);
 }
 
 /// `v_i · Σ_b w_b · exp(−Σ_m μ_{m,b} · L_{m,i})` and `v_i · Σ_b w_b · e_b · exp(…)` of every
@@ -185,13 +169,7 @@ pub(super) fn ray_sums(
         slots,
         fluence: weights,
     };
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (checked just above).
-        unsafe { covered_sums_avx2::<true>(&args, quanta, energy) };
-        return;
-    }
-    covered_sums::<true>(&args, quanta, energy);
+    args.sums(true, quanta, energy);
 }
 
 /// The covered pixels of one row, gathered by block (see [`row_expected`]).
@@ -207,6 +185,30 @@ struct Covered<'a> {
     slots: usize,
     /// The row's fluence.
     fluence: &'a [f64],
+}
+
+impl Covered<'_> {
+    /// `Q` (and with `with_energy`, `E`) of every covered pixel: [`covered_sums_avx2`] on CPUs
+    /// with AVX2 (checked at run time), else [`covered_sums`]; the same bits either way.
+    fn sums(&self, with_energy: bool, quanta: &mut [f64], e: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe {
+                if with_energy {
+                    covered_sums_avx2::<true>(self, quanta, e);
+                } else {
+                    covered_sums_avx2::<false>(self, quanta, e);
+                }
+            }
+            return;
+        }
+        if with_energy {
+            covered_sums::<true>(self, quanta, e);
+        } else {
+            covered_sums::<false>(self, quanta, e);
+        }
+    }
 }
 
 /// [`covered_sums`] with AVX2 intrinsics: a block's [`LANES`] pixels are two vectors of four,
