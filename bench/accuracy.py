@@ -9,6 +9,8 @@ taken from each report's report.csv by bench/report_table.py; nothing is typed.
     bench/accuracy.py biplanar        # scenarios/biplanar.toml, 100 runs: DLT and Selvik markers,
                                       #   silhouette -> accuracy-biplanar-markers.md,
                                       #   accuracy-biplanar-silhouette.md
+    bench/accuracy.py uniplanar       # the same of scenarios/uniplanar.toml (both tubes over one
+                                      #   detector) -> accuracy-uniplanar-{markers,silhouette}.md
     bench/accuracy.py realistic       # biplanar_realistic.toml, 5 runs per level (--runs N):
                                       #   markers and silhouette -> accuracy-realistic-sharp.md,
                                       #   and the detection table detection-realistic-sharp.md
@@ -197,18 +199,21 @@ def command(args, sub):
     return " ".join(parts)
 
 
-def cmd_biplanar(args):
+def cmd_biplanar(args, name="biplanar"):
+    """The paper's protocol (`biplanar`), or its uniplanar variant (`uniplanar`: both tubes over
+    one detector, which the paper did not test, so its column holds no figures there)."""
     binary = stamp.release_binary()
-    o = Output(args, "biplanar")
+    o = Output(args, name)
+    paper = PAPER if name == "biplanar" else {}
     try:
-        simulate(binary, "scenarios/biplanar.toml", o.dir, args.runs)
+        simulate(binary, f"scenarios/{name}.toml", o.dir, args.runs)
         names = {
             "dlt": reconstruct(binary, o.dir, model="markers"),
             "selvik": reconstruct(binary, o.dir, "selvik", model="markers"),
             "silhouette": reconstruct(binary, o.dir, model="silhouette"),
         }
         reports = {k: rt.read(evaluate(binary, o.dir, n) / "report.csv") for k, n in names.items()}
-        rows = [(label, sel, {"the paper's tested program": PAPER.get(key, "—") if key else "—"})
+        rows = [(label, sel, {"the paper's tested program": paper.get(key, "—") if key else "—"})
                 for label, sel, key in BIPLANAR_ROWS]
         table = rt.by_report(
             reports,
@@ -218,12 +223,12 @@ def cmd_biplanar(args):
         note = (f"{n} runs; each cell the largest |trueness| and the largest precision P over the "
                 "noise levels and the columns named; the paper's column holds its own published "
                 "figures (Tables 1–4), constants in the script")
-        stamp.write(tables_dir(args) / "accuracy-biplanar-markers.md", command(args, "biplanar"), table,
+        stamp.write(tables_dir(args) / f"accuracy-{name}-markers.md", command(args, name), table,
                     binary, note=note)
 
         sil = reports["silhouette"]
         const = lambda key: {"target (the issue)": TARGET.get(key, "—"),  # noqa: E731
-                             "the paper's tested program (model-based)": PAPER.get(key, "—")}
+                             "the paper's tested program (model-based)": paper.get(key, "—")}
         rows = [("model position x, y, z", "phantom-.*:position:", const("model_position")),
                 ("model orientation α, β, γ", "phantom-.*:orientation:", const("model_orientation"))]
         table = rt.by_report({"s": sil}, [("reconstruct `--model-method silhouette`", "s")], rows,
@@ -239,9 +244,9 @@ def cmd_biplanar(args):
         if contour:
             extra.append(f"| fit residual (`contour_distance_px`), range over the fits | "
                          f"{rt.fmt(min(contour))}–{rt.fmt(max(contour))} px | — | — |")
-        stamp.write(tables_dir(args) / "accuracy-biplanar-silhouette.md", command(args, "biplanar"),
+        stamp.write(tables_dir(args) / f"accuracy-{name}-silhouette.md", command(args, name),
                     table + "\n".join(extra) + "\n", binary,
-                    note="the same output and runs as accuracy-biplanar-markers.md")
+                    note=f"the same output and runs as accuracy-{name}-markers.md")
     finally:
         o.close()
 
@@ -337,7 +342,7 @@ def cmd_migration(args, attenuation):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("which", choices=["biplanar", *REALISTIC, "migration", "migration-attenuation"])
+    ap.add_argument("which", choices=["biplanar", "uniplanar", *REALISTIC, "migration", "migration-attenuation"])
     ap.add_argument("--out", default=None, help="keep the output in this folder")
     ap.add_argument("--runs", type=int, default=None, help="runs_per_level of a copy of the scenario")
     ap.add_argument("--tables", default=None, help="write the tables here (default docs/src/results/tables)")
@@ -347,6 +352,7 @@ def main():
         args.runs = 5
     {
         "biplanar": cmd_biplanar,
+        "uniplanar": lambda a: cmd_biplanar(a, "uniplanar"),
         **{sub: (lambda a, sub=sub: cmd_realistic(a, sub)) for sub in REALISTIC},
         "migration": lambda a: cmd_migration(a, False),
         "migration-attenuation": lambda a: cmd_migration(a, True),

@@ -14,6 +14,8 @@ load average at the start and at the end.
     bench/printed.py sampling               # sampling:: -> sampling-bead-centroids.md
     bench/printed.py adaptive               # examples/adaptive_check.rs on the blurred scenario
                                             #   -> adaptive-sampling.md
+    bench/printed.py adaptive-crop          # sampling::adaptive_sampling_stays_within_its_bound_…
+                                            #   (the knee crop) -> adaptive-crop.md
     bench/printed.py exr-encoders [OUT]     # examples/encoder_levels.rs on a biplanar output
                                             #   (simulated when OUT is not given) -> exr-encoders.md
     bench/printed.py detector-response      # benches/response.rs's CPU-time lines
@@ -28,6 +30,10 @@ load average at the start and at the end.
     bench/printed.py protocols [--rounds N] [--baseline BIN]   # the binary, realistic and
                                             #   blurred protocols on 10-run shards, alternated with
                                             #   an older build -> protocols-speed.md
+    bench/printed.py protocol [--rounds N]  # the whole binary protocol: wall, CPU, peak RSS, size
+                                            #   -> protocol-full.md
+    bench/printed.py shards [--repeats N]   # bench/shards.sh: one run against 2 shards + merge
+                                            #   -> shards-merge.md
 
 Tests run from the release integration-test binary (`cargo test --release --locked --test
 integration`), so one build serves every test table; RSASIM_TEST_BIN names that executable to run
@@ -404,6 +410,85 @@ def cmd_first_run(args):
                      "build jobs as cargo chooses")
 
 
+def cmd_adaptive_crop(args):
+    binary = stamp.release_binary()
+    text = cargo_test("sampling::adaptive_sampling_stays_within_its_bound_of_full_sampling")
+    m = re.search(r"adaptive vs full, knee crop 360²: max \|ΔQ\|/√Q ([\d.]+), max \|ΔE\|/\(E/√Q\) ([\d.]+); "
+                  r"([\d.]+) % of pixels keep one ray; (\d+) pixels where one ray is off by > 0\.1 SD, "
+                  r"(\d+) of them refined", text)
+    if not m:
+        sys.exit(f"no crop line in the test's output:\n{text[-3000:]}")
+    q, e, kept, off, refined = m.groups()
+    rows = ["| 360² crop of the knee, 60 keV, 2 × 2 rays, 1.2 mm spot of 3 × 3 | value | the test requires |",
+            "|---|---:|---|",
+            f"| largest \\|ΔQ\\|/√Q of any pixel, adaptive against full sampling | {q} | ≤ 0.1 |",
+            f"| largest \\|ΔE\\|/(E/√Q) | {e} | ≤ 0.1 |",
+            f"| pixels kept at one ray | {kept} % | > 50 % |",
+            f"| pixels where one ray is off by more than 0.1 SD | {int(off):,} | > 1,000 |",
+            f"| of those, refined | {int(refined):,} | all |"]
+    write(args, "adaptive-crop.md", "bench/printed.py adaptive-crop", "\n".join(rows), binary,
+          note="from `cargo test --release --test integration sampling::adaptive_sampling_stays_within_its_bound"
+               "_of_full_sampling -- --nocapture`")
+
+
+def cmd_protocol(args):
+    binary = stamp.release_binary()
+    root = pathlib.Path("/dev/shm") if pathlib.Path("/dev/shm").is_dir() else pathlib.Path(tempfile.gettempdir())
+    out = pathlib.Path(tempfile.mkdtemp(dir=root, prefix="rsasim-protocol."))
+    start = stamp.load()
+    rounds = []
+    try:
+        for r in range(args.rounds):
+            shutil.rmtree(out / "p", ignore_errors=True)
+            with tempfile.NamedTemporaryFile("r") as t:
+                run(["/usr/bin/time", "-o", t.name, "-f", "%e %U %S %M", str(binary), "scenarios/biplanar.toml",
+                     "--out", str(out / "p")])
+                wall, user, system, rss = t.read().split()[-4:]
+            files = [f for f in (out / "p").rglob("*") if f.is_file()]
+            rounds.append((float(wall), float(user) + float(system), int(rss), sum(f.stat().st_size for f in files),
+                           len(files)))
+            log(f"round {r + 1}: {rounds[-1]}")
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    med = lambda v: sorted(v)[len(v) // 2]  # noqa: E731 (median of an odd count)
+    wall, cpu = med([x[0] for x in rounds]), med([x[1] for x in rounds])
+    rss_mb = max(x[2] for x in rounds) / 1024
+    size, files = rounds[0][3], rounds[0][4]
+    ok = lambda b: "yes" if b else "**no**"  # noqa: E731
+    rows = ["| `scenarios/biplanar.toml`, 100 runs | measured | target | met |", "|---|---:|---|---|",
+            f"| wall | {wall:.1f} s | ≤ 30 s | {ok(wall <= 30)} |",
+            f"| CPU (user + system) | {cpu:.1f} s ({100 * cpu / wall:.0f} % of wall) | | |",
+            f"| peak RSS | {rss_mb:.0f} MB | ≤ 500 MB | {ok(rss_mb <= 500)} |",
+            f"| output | {size / 1e9:.2f} GB in {files:,} files | | |"]
+    write(args, "protocol-full.md", f"bench/printed.py protocol --rounds {args.rounds}", "\n".join(rows), binary,
+          load_start=start, note=f"medians over {args.rounds} runs of the whole protocol (peak RSS: the largest), "
+                                 "output on tmpfs")
+
+
+def cmd_shards(args):
+    binary = stamp.release_binary()
+    start = stamp.load()
+    text = run(["bash", "bench/shards.sh"], env={"RSASIM": str(binary), "REPEATS": str(args.repeats)})
+    pat = re.compile(r"^repeat (\d+): single ([\d.]+) s; (\d+) shards ([\d.]+) s \+ merge ([\d.]+) s = ([\d.]+) s "
+                     r"\(([+-][\d.]+) %\); merged = single, byte for byte$")
+    reps = [m.groups() for m in map(pat.match, text.splitlines()) if m]
+    if len(reps) != args.repeats:
+        sys.exit(f"bench/shards.sh printed {len(reps)} repeats, not {args.repeats}:\n{text[-3000:]}")
+    count = reps[0][2]
+    rows = [f"| repeat | one run | {count} shards, one after the other | merge | shards + merge | against one run |",
+            "|---|---:|---:|---:|---:|---:|"]
+    for i, single, _, shards, merge, total, pct in reps:
+        rows.append(f"| {i} | {float(single):.2f} s | {float(shards):.2f} s | {float(merge):.2f} s | {float(total):.2f} s | {pct} % |")
+    med = lambda k: sorted(float(r[k]) for r in reps)[len(reps) // 2]  # noqa: E731 (odd count)
+    ms, msh, mm, mt = med(1), med(3), med(4), med(5)
+    rows.append(f"| median | {ms:.2f} s | {msh:.2f} s ({100 * (msh / ms - 1):+.1f} %) | {mm:.2f} s | {mt:.2f} s | "
+                f"**{100 * (mt / ms - 1):+.1f} %** (target ≤ +5 %: {'met' if mt / ms <= 1.05 else 'not met'}) |")
+    write(args, "shards-merge.md", f"bench/printed.py shards --repeats {args.repeats}", "\n".join(rows), binary,
+          load_start=start, note="`bench/shards.sh` on `scenarios/biplanar.toml`: the whole protocol as one run, "
+                                 "then as 2 shards and `rsasim merge`, alternated; output in the temporary folder "
+                                 "(on disk); the merged folder equals the single run byte for byte")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--tables", default=None, help="write the tables here (default docs/src/results/tables)")
@@ -411,7 +496,7 @@ def main():
     p = sub.add_parser("detection")
     p.add_argument("out")
     p.add_argument("file")
-    for name in ("bead-centres", "sampling", "adaptive", "detector-response", "first-run-cost"):
+    for name in ("bead-centres", "sampling", "adaptive", "adaptive-crop", "detector-response", "first-run-cost"):
         sub.add_parser(name)
     for name in ("exr-encoders", "reconstruct-speed"):
         sub.add_parser(name).add_argument("out", nargs="?")
@@ -422,13 +507,16 @@ def main():
     p = sub.add_parser("protocols")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--baseline", default=None, help="an older rsasim binary, timed alternately")
+    sub.add_parser("protocol").add_argument("--rounds", type=int, default=3)
+    sub.add_parser("shards").add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     {
         "detection": cmd_detection, "bead-centres": cmd_bead_centres, "sampling": cmd_sampling,
         "adaptive": cmd_adaptive, "exr-encoders": cmd_exr_encoders,
         "detector-response": cmd_detector_response, "reconstruct-speed": cmd_reconstruct_speed,
         "fuzz": cmd_fuzz, "attenuation-speed": cmd_attenuation_speed, "first-run-cost": cmd_first_run,
-        "protocols": cmd_protocols,
+        "protocols": cmd_protocols, "adaptive-crop": cmd_adaptive_crop, "protocol": cmd_protocol,
+        "shards": cmd_shards,
     }[args.which](args)
 
 
