@@ -13,6 +13,9 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/rsasim-first-run.XXXXXX")
 trap 'rm -rf "$work"' EXIT
+# mktemp makes the folder 0700; run as root, the tests' received-folder mutants run as `nobody`,
+# who must be able to reach the binary (as in any checkout a fresh machine clones).
+chmod 755 "$work"
 git clone --quiet --no-hardlinks "$root" "$work/clone"
 cd "$work/clone"
 unset CARGO_TARGET_DIR

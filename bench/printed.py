@@ -24,7 +24,8 @@ load average at the start and at the end.
     bench/printed.py fuzz [N] [--only KIND,…]  # examples/fuzz_inputs.rs received N (default
                                             #   20000) per command -> receiving-fuzz.md (hours)
     bench/printed.py attenuation-speed [--venv DIR]   # bench/attenuation.sh (rsasim against
-                                            #   gVirtualXray) -> attenuation-speed.md
+                                            #   gVirtualXray and Embree) -> attenuation-speed.md,
+                                            #   attenuation-transmission.md, attenuation-pathlength.md
     bench/printed.py first-run-cost         # bench/first_run.sh: a fresh clone's first build,
                                             #   run and test -> first-run-cost.md
     bench/printed.py protocols [--rounds N] [--baseline BIN]   # the binary, realistic and
@@ -322,10 +323,28 @@ def cmd_attenuation_speed(args):
         if realistic and g:
             ratio = f"**{ratio}**"
         rows.append(f"| {t['what']} | {t['ours_ms']:.1f} ms | {'—' if g is None else f'{g:.0f} ms'} | {ratio} | {target} |")
-    write(args, "attenuation-speed.md", "bench/printed.py attenuation-speed" + (f" --venv {args.venv}" if args.venv else ""),
+    command = "bench/printed.py attenuation-speed" + (f" --venv {args.venv}" if args.venv else "")
+    write(args, "attenuation-speed.md", command,
           "\n".join(rows), binary, load_start=start,
           note="from `bench/attenuation.sh` (medians of 5 after a warm-up; its summary_attenuation.json "
                "in bench/results/attenuation/); gVXR on the same machine")
+    # The same run's checks, as bench/peers_attenuation.py's summary.md prints them: the
+    # transmission against gVXR (its table and the lines under it) and the path lengths against
+    # Embree. Blocks of summary.md are separated by blank lines.
+    blocks = [b.strip() for b in (ROOT / "bench/results/attenuation/summary.md").read_text().split("\n\n")]
+    for name, head, what in (
+            ("attenuation-transmission.md", "| scene | region |",
+             "per-pixel transmission T, gVXR against rsasim (relative difference), then the lines under the table"),
+            ("attenuation-pathlength.md", "| path length vs Embree |",
+             "path lengths, rsasim against Embree on the same triangles")):
+        at = [i for i, blk in enumerate(blocks) if blk.startswith(head)]
+        if not at:
+            sys.exit(f"bench/results/attenuation/summary.md has no table starting {head!r}")
+        text = blocks[at[0]]
+        if at[0] + 1 < len(blocks) and blocks[at[0] + 1].startswith("- "):
+            text += "\n\n" + blocks[at[0] + 1]
+        write(args, name, command, text, binary, load_start=start,
+              note=f"from `bench/attenuation.sh` (its summary.md in bench/results/attenuation/): {what}")
 
 
 # Issue 32's targets for the realistic protocols against the binary one (10-run copies).

@@ -1134,6 +1134,30 @@ pub mod received {
     /// The user and group id of `nobody`.
     const NOBODY: u32 = 65534;
 
+    /// Whether `nobody` may execute `bin`: every folder above it searchable by others (the
+    /// checkout's folders belong to root here) and the file executable by others. A checkout
+    /// under `mktemp -d` (mode 0700) fails here rather than with a bare "permission denied" from
+    /// every mutant.
+    fn nobody_can_run(bin: &Path) -> Result<(), String> {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let mode = |p: &Path| {
+            std::fs::metadata(p)
+                .map(|m| (m.permissions().mode(), m.uid()))
+                .map_err(|e| format!("{}: {e}", p.display()))
+        };
+        let (file_mode, owner) = mode(bin)?;
+        if owner != NOBODY && file_mode & 0o001 == 0 {
+            return Err(format!("{} has mode {:o}", bin.display(), file_mode & 0o7777));
+        }
+        for dir in bin.ancestors().skip(1).filter(|d| !d.as_os_str().is_empty()) {
+            let (dir_mode, owner) = mode(dir)?;
+            if owner != NOBODY && dir_mode & 0o001 == 0 {
+                return Err(format!("the folder {} has mode {:o}", dir.display(), dir_mode & 0o7777));
+            }
+        }
+        Ok(())
+    }
+
     /// Every regular file under `dir`, relative with `/`, sorted.
     fn files_under(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> = snapshot(dir)
@@ -1350,6 +1374,16 @@ pub mod received {
         pub fn new(bin: PathBuf, limit: Duration) -> Harness {
             // SAFETY: geteuid has no preconditions.
             let as_nobody = unsafe { libc::geteuid() } == 0;
+            if as_nobody {
+                if let Err(e) = nobody_can_run(&bin) {
+                    panic!(
+                        "the received-folder mutants run as `nobody` (this test runs as root), who cannot run {}: {e}; \
+                         put the checkout and its target folder where others may enter (chmod o+x), \
+                         or run the tests as a user other than root",
+                        bin.display()
+                    );
+                }
+            }
             Harness {
                 bin,
                 limit,
