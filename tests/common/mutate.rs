@@ -1147,12 +1147,24 @@ pub mod received {
         };
         let (file_mode, owner) = mode(bin)?;
         if owner != NOBODY && file_mode & 0o001 == 0 {
-            return Err(format!("{} has mode {:o}", bin.display(), file_mode & 0o7777));
+            return Err(format!(
+                "{} has mode {:o}",
+                bin.display(),
+                file_mode & 0o7777
+            ));
         }
-        for dir in bin.ancestors().skip(1).filter(|d| !d.as_os_str().is_empty()) {
+        for dir in bin
+            .ancestors()
+            .skip(1)
+            .filter(|d| !d.as_os_str().is_empty())
+        {
             let (dir_mode, owner) = mode(dir)?;
             if owner != NOBODY && dir_mode & 0o001 == 0 {
-                return Err(format!("the folder {} has mode {:o}", dir.display(), dir_mode & 0o7777));
+                return Err(format!(
+                    "the folder {} has mode {:o}",
+                    dir.display(),
+                    dir_mode & 0o7777
+                ));
             }
         }
         Ok(())
