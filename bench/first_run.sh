@@ -30,6 +30,7 @@ timed() { # NAME COMMAND…: prints NAME_s=SECONDS
     echo "${name}_s=$(python3 -c "print(round($end - $start, 1))")"
 }
 gb() { du -sb "$1" | awk '{printf "%.2f", $1 / 1e9}'; }
+echo "commit=$(git rev-parse --short=7 HEAD)"
 timed fetch cargo fetch --locked
 timed build_release cargo build --release --locked
 timed run target/release/rsasim scenarios/biplanar.toml --out "$work/out"

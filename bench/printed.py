@@ -424,7 +424,7 @@ def cmd_first_run(args):
             f"{vals['target_debug_gb']} GB build (`target/debug`) |"]
     d = pathlib.Path(args.tables).resolve() if args.tables else TABLES
     stamp.write(d / "first-run-cost.md", "bench/printed.py first-run-cost", "\n".join(rows), load_start=start,
-                version_line=vals.get("version"),
+                version_line=vals.get("version"), commit_text=vals.get("commit"),
                 note="a fresh clone with an empty target folder and crate cache (fetched first, not timed); "
                      "build jobs as cargo chooses")
 

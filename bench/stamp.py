@@ -115,11 +115,12 @@ def now():
     return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
-def line(command, binary=None, load_start=None, note=None, version_line=None):
+def line(command, binary=None, load_start=None, note=None, version_line=None, commit_text=None):
     """The first line of a table file. `binary`'s --version is cited (or `version_line`, for a
     binary that is gone); `load_start` (a timing table's load before measuring) adds the load
-    average then and now; `note` is appended as it is."""
-    parts = [f"Command: `{command}`", f"commit {commit()}"]
+    average then and now; `note` is appended as it is. `commit_text` replaces this work tree's
+    commit, for a measurement of another checkout (a fresh clone of a commit)."""
+    parts = [f"Command: `{command}`", f"commit {commit_text or commit()}"]
     v = version_line or version(binary)
     if v:
         parts.append(f"`{v}`")
@@ -153,12 +154,13 @@ def output_origin(out, results_name):
     return text
 
 
-def write(path, command, table, binary=None, load_start=None, note=None, version_line=None):
+def write(path, command, table, binary=None, load_start=None, note=None, version_line=None, commit_text=None):
     """Writes a table file: the stamp line, a blank line, the table (Markdown)."""
     path = pathlib.Path(path)
     if not path.is_absolute():
         path = ROOT / path
-    path.write_text(line(command, binary, load_start, note, version_line) + "\n\n" + table.strip("\n") + "\n")
+    path.write_text(line(command, binary, load_start, note, version_line, commit_text) + "\n\n"
+                    + table.strip("\n") + "\n")
     print(f"wrote {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}", file=sys.stderr)
 
 
