@@ -21,7 +21,8 @@ use super::model_outline::OutlineSegment;
 use super::overprojection::overprojected;
 use super::selvik::calibrate_selvik;
 use super::silhouette::{
-    GOOD_FIT_PX, REMEASURE_ROUNDS, Remeasure, SilhouetteView, fit_silhouette, refine_remeasured,
+    GOOD_FIT_PX, MIN_OUTLINE_AGREEMENT, REMEASURE_ROUNDS, Remeasure, SilhouetteView,
+    fit_silhouette, outline_agreement, refine_remeasured,
 };
 use super::split::bead_blobs;
 use super::{Method, ModelMethod};
@@ -959,6 +960,14 @@ fn find_model_by_outline(
     let mut flags = Vec::new();
     if fit.mean_distance_px > GOOD_FIT_PX {
         flags.push(format!("contour distance > {GOOD_FIT_PX} px"));
+    }
+    let agreement = outline_agreement(model, &views, &fit.pose);
+    if agreement < MIN_OUTLINE_AGREEMENT {
+        flags.push(format!(
+            "outline agrees with the segmented shadow on {:.0} % of its edge points (< {:.0} %)",
+            100.0 * agreement,
+            100.0 * MIN_OUTLINE_AGREEMENT
+        ));
     }
     Ok(model_pose(
         &fit.pose,
