@@ -221,8 +221,9 @@ def cmd_biplanar(args, name="biplanar"):
             rows, constants=["the paper's tested program"])
         n = len(list((o.dir / "runs").iterdir()))
         note = (f"{n} runs; each cell the largest |trueness| and the largest precision P over the "
-                "noise levels and the columns named; the paper's column holds its own published "
-                "figures (Tables 1–4), constants in the script")
+                "noise levels and the columns named; "
+                + ("the paper's column holds its own published figures (Tables 1–4), constants in the script"
+                   if paper else "the paper did not test this set-up, so its column is empty"))
         stamp.write(tables_dir(args) / f"accuracy-{name}-markers.md", command(args, name), table,
                     binary, note=note)
 
