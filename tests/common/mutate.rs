@@ -1145,25 +1145,14 @@ pub mod received {
                 .map(|m| (m.permissions().mode(), m.uid()))
                 .map_err(|e| format!("{}: {e}", p.display()))
         };
-        let (file_mode, owner) = mode(bin)?;
-        if owner != NOBODY && file_mode & 0o001 == 0 {
-            return Err(format!(
-                "{} has mode {:o}",
-                bin.display(),
-                file_mode & 0o7777
-            ));
-        }
-        for dir in bin
-            .ancestors()
-            .skip(1)
-            .filter(|d| !d.as_os_str().is_empty())
-        {
-            let (dir_mode, owner) = mode(dir)?;
-            if owner != NOBODY && dir_mode & 0o001 == 0 {
+        // The binary itself first, then every folder above it.
+        for path in bin.ancestors().filter(|p| !p.as_os_str().is_empty()) {
+            let (path_mode, owner) = mode(path)?;
+            if owner != NOBODY && path_mode & 0o001 == 0 {
                 return Err(format!(
-                    "the folder {} has mode {:o}",
-                    dir.display(),
-                    dir_mode & 0o7777
+                    "{} has mode {:o}",
+                    path.display(),
+                    path_mode & 0o7777
                 ));
             }
         }
