@@ -484,33 +484,52 @@ fn femur_error(
 /// (`silhouette::outline_agreement`); the run must land within issue 32's 0.1 mm and 0.1°.
 #[test]
 fn the_blurred_run_whose_outline_fit_fell_into_a_wrong_minimum_is_fitted() {
+    blurred_run_within_issue_32_bounds(59, "n2-r19");
+}
+
+/// Issue 32, item 5: runs n2-r03 (×0.5; shard 43 of 100) and n0-r17 (×2; shard 17) of the
+/// shipped `biplanar_realistic_blurred.toml` settled at the right minimum but 0.18° off, mostly
+/// about the axis perpendicular to both beams (`bench/outline_bias.py`, docs/src/results/biases.md).
+/// Each round of the fit re-measures its edge points along its own outline, and a pose turned
+/// slightly about that axis admitted edge points that held it there, pulling with the Huber
+/// weight of 1 px. At `silhouette::HUBER_PX` = 0.25 px both runs land within issue 32's 0.1 mm
+/// and 0.1°.
+#[test]
+fn blurred_runs_held_off_by_their_own_edge_points_are_fitted() {
+    blurred_run_within_issue_32_bounds(43, "n2-r03");
+    blurred_run_within_issue_32_bounds(17, "n0-r17");
+}
+
+/// Simulates run `id` (shard `shard` of 100) of the shipped blurred scenario alone, fits the femur
+/// by its silhouette and requires it within 0.1 mm and 0.1°, with no quality flag.
+fn blurred_run_within_issue_32_bounds(shard: u32, id: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let scenario = common::root().join("scenarios/biplanar_realistic_blurred.toml");
     let o = rsasim(
         &[
             scenario.to_str().unwrap(),
             "--shard",
-            "59/100",
+            &format!("{shard}/100"),
             "--out",
             tmp.path().to_str().unwrap(),
         ],
         &[],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = tmp.path().join("shard-59-of-100");
+    let out = tmp.path().join(format!("shard-{shard}-of-100"));
     let measured = reconstruct(&out, "radiograph", "silhouette");
     let runs = truths(&out);
     assert_eq!(runs.len(), 1);
     let truth = &runs[0].1;
-    assert_eq!(truth.run.id, "n2-r19");
+    assert_eq!(truth.run.id, id);
     let femur = (measured[0].phantoms.iter())
         .find(|p| p.id == "femur")
         .expect("the femur is fitted");
     let (err, angle_deg) = femur_error(truth, femur);
-    eprintln!("blurred n2-r19 silhouette: femur position error {err:.3} mm, {angle_deg:.3}°");
-    assert!(err < 0.1 && angle_deg < 0.1, "{err} mm, {angle_deg}°");
+    eprintln!("blurred {id} silhouette: femur position error {err:.3} mm, {angle_deg:.3}°");
+    assert!(err < 0.1 && angle_deg < 0.1, "{id}: {err} mm, {angle_deg}°");
     let flags = &femur.quality.as_ref().unwrap().flags;
-    assert!(flags.is_empty(), "{flags:?}");
+    assert!(flags.is_empty(), "{id}: {flags:?}");
 }
 
 /// The detection tables of docs/src/results/accuracy.md: per exposure level of an existing radiograph-polarity

@@ -26,8 +26,8 @@
 //! 2. **Refinement**: an iterative closest point fit of the model's projected outer outline
 //!    ([`OutlineModel::outline`]) to the detected edge points ([`super::contour`]) in every view.
 //!    Each detected point is paired with the nearest outline segment within a search radius that
-//!    shrinks from 12 to 2.5 pixels; the point-to-segment-line distances, Huber-weighted at one
-//!    pixel, are minimised by Gauss–Newton over the six pose parameters (a rotation about the
+//!    shrinks from 12 to 2.5 pixels; the point-to-segment-line distances, Huber-weighted at
+//!    [`HUBER_PX`] (a quarter of a pixel), are minimised by Gauss–Newton over the six pose parameters (a rotation about the
 //!    model's centre and a translation), with analytic derivatives of the central projection.
 //!
 //! The fit residual is the mean distance in pixels between the detected edge points and the
@@ -50,8 +50,13 @@ const ROTATION_STEPS_DEG: [f64; 3] = [6.0, 3.0, 1.5];
 const FIRST_RADIUS_PX: f64 = 12.0;
 /// Final search radius, pixels.
 const LAST_RADIUS_PX: f64 = 2.5;
-/// Huber threshold of the refinement, pixels.
-const HUBER_PX: f64 = 1.0;
+/// Huber threshold of the refinement, pixels. On graded images each round re-measures its edge
+/// points along the outline it has fitted, and whether a normal gives a clean step depends on
+/// where that outline lies: a pose turned slightly about the axis perpendicular to both beams
+/// admitted points that, at a threshold of 1 px, held the fit there, up to 0.2° off (issue 32,
+/// item 5; docs/src/results/biases.md). Those points lie a few tenths of a pixel off the outline,
+/// so at 0.25 px their pull is capped near that of a well-fitting point.
+pub const HUBER_PX: f64 = 0.25;
 /// Refinement iterations at most.
 const MAX_ITERATIONS: usize = 60;
 /// Starts the refinement tries at most: the best poses of the coarse grid, in order, until one
