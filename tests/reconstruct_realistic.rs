@@ -492,12 +492,15 @@ fn the_blurred_run_whose_outline_fit_fell_into_a_wrong_minimum_is_fitted() {
 /// about the axis perpendicular to both beams (`bench/outline_bias.py`, docs/src/results/biases.md).
 /// Each round of the fit re-measures its edge points along its own outline, and a pose turned
 /// slightly about that axis admitted edge points that held it there, pulling with the Huber
-/// weight of 1 px. At `silhouette::HUBER_PX` = 0.25 px both runs land within issue 32's 0.1 mm
-/// and 0.1°.
+/// weight of 1 px. With `silhouette::HUBER_PX` = 0.25 px at the last search radius both runs land
+/// within issue 32's 0.1 mm and 0.1°. Run n0-r15 (×2; shard 15) is the other side: at a fixed
+/// 0.25 px from the first iteration, its first start lost the lateral view and was kept 0.9 mm
+/// off; the threshold shrinks with the search radius, so it does not.
 #[test]
 fn blurred_runs_held_off_by_their_own_edge_points_are_fitted() {
     blurred_run_within_issue_32_bounds(43, "n2-r03");
     blurred_run_within_issue_32_bounds(17, "n0-r17");
+    blurred_run_within_issue_32_bounds(15, "n0-r15");
 }
 
 /// Simulates run `id` (shard `shard` of 100) of the shipped blurred scenario alone, fits the femur

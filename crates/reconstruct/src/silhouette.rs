@@ -26,8 +26,8 @@
 //! 2. **Refinement**: an iterative closest point fit of the model's projected outer outline
 //!    ([`OutlineModel::outline`]) to the detected edge points ([`super::contour`]) in every view.
 //!    Each detected point is paired with the nearest outline segment within a search radius that
-//!    shrinks from 12 to 2.5 pixels; the point-to-segment-line distances, Huber-weighted at
-//!    [`HUBER_PX`] (a quarter of a pixel), are minimised by Gauss–Newton over the six pose parameters (a rotation about the
+//!    shrinks from 12 to 2.5 pixels; the point-to-segment-line distances, Huber-weighted at a
+//!    threshold that shrinks with the radius to [`HUBER_PX`] (a quarter of a pixel), are minimised by Gauss–Newton over the six pose parameters (a rotation about the
 //!    model's centre and a translation), with analytic derivatives of the central projection.
 //!
 //! The fit residual is the mean distance in pixels between the detected edge points and the
@@ -50,12 +50,15 @@ const ROTATION_STEPS_DEG: [f64; 3] = [6.0, 3.0, 1.5];
 const FIRST_RADIUS_PX: f64 = 12.0;
 /// Final search radius, pixels.
 const LAST_RADIUS_PX: f64 = 2.5;
-/// Huber threshold of the refinement, pixels. On graded images each round re-measures its edge
-/// points along the outline it has fitted, and whether a normal gives a clean step depends on
-/// where that outline lies: a pose turned slightly about the axis perpendicular to both beams
-/// admitted points that, at a threshold of 1 px, held the fit there, up to 0.2° off (issue 32,
-/// item 5; docs/src/results/biases.md). Those points lie a few tenths of a pixel off the outline,
-/// so at 0.25 px their pull is capped near that of a well-fitting point.
+/// Huber threshold of the refinement at its last search radius, pixels; while the radius
+/// shrinks from [`FIRST_RADIUS_PX`], the threshold shrinks with it (from 1.2 px), so a start a
+/// few pixels off in one view still pulls that view in (run n0-r15 of the blurred scenario lost
+/// its lateral view, 0.9 mm off, at a fixed 0.25 px). On graded images each round re-measures
+/// its edge points along the outline it has fitted, and whether a normal gives a clean step
+/// depends on where that outline lies: a pose turned slightly about the axis perpendicular to
+/// both beams admitted points that, at a final threshold of 1 px, held the fit there, up to 0.2°
+/// off (issue 32, item 5; docs/src/results/biases.md). Those points lie a few tenths of a pixel
+/// off the outline, so at 0.25 px their pull is capped near that of a well-fitting point.
 pub const HUBER_PX: f64 = 0.25;
 /// Refinement iterations at most.
 const MAX_ITERATIONS: usize = 60;
@@ -512,6 +515,7 @@ fn refine(
     while iterations < MAX_ITERATIONS {
         iterations += 1;
         let centre = pose.to_world(model.centre_mm);
+        let huber_px = HUBER_PX * radius / LAST_RADIUS_PX;
         let mut h = SMatrix::<f64, 6, 6>::zeros();
         let mut g = SVector::<f64, 6>::zeros();
         let (mut distance_sum, mut paired) = (0.0, 0usize);
@@ -535,10 +539,10 @@ fn refine(
                 let arm = point - centre;
                 let rot = arm.cross(grad);
                 let j = SVector::<f64, 6>::from([rot.x, rot.y, rot.z, grad.x, grad.y, grad.z]);
-                let weight = if residual.abs() <= HUBER_PX {
+                let weight = if residual.abs() <= huber_px {
                     1.0
                 } else {
-                    HUBER_PX / residual.abs()
+                    huber_px / residual.abs()
                 };
                 h += j * j.transpose() * weight;
                 g += j * (weight * residual);
