@@ -24,24 +24,16 @@ import argparse
 import json
 import math
 import pathlib
-import subprocess
 import sys
 import tempfile
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import stamp  # noqa: E402
-from bias import VARIANTS  # noqa: E402
+from bias import VARIANTS, run  # noqa: E402
 
 ROOT = stamp.ROOT
 LEVELS = [2.0, 1.0, 0.5, 0.25, 0.125]
 RUNS_PER_LEVEL = 20
-
-
-def run(cmd):
-    done = subprocess.run(cmd, capture_output=True, text=True)
-    if done.returncode != 0:
-        sys.exit(f"{' '.join(map(str, cmd))} failed:\n{done.stderr}")
-    return done.stdout + done.stderr
 
 
 def scenario_text(level, factor, imaging, detector):

@@ -27,8 +27,9 @@
 //!    ([`OutlineModel::outline`]) to the detected edge points ([`super::contour`]) in every view.
 //!    Each detected point is paired with the nearest outline segment within a search radius that
 //!    shrinks from 12 to 2.5 pixels; the point-to-segment-line distances, Huber-weighted at a
-//!    threshold that shrinks with the radius to [`HUBER_PX`] (a quarter of a pixel), are minimised by Gauss–Newton over the six pose parameters (a rotation about the
-//!    model's centre and a translation), with analytic derivatives of the central projection.
+//!    threshold that shrinks with the radius to [`HUBER_PX`] (a quarter of a pixel), are
+//!    minimised by Gauss–Newton over the six pose parameters (a rotation about the model's
+//!    centre and a translation), with analytic derivatives of the central projection.
 //!
 //! The fit residual is the mean distance in pixels between the detected edge points and the
 //! projected outline, over the points paired at the end: about a quarter of a pixel for an exact
