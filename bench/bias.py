@@ -49,11 +49,21 @@ VARIANTS = {
 }
 
 
-def scenario_text(runs, imaging, detector):
+# The shipped protocol of biplanar_realistic.toml, which scenario_text rewrites.
+LEVELS = [2.0, 1.0, 0.5, 0.25, 0.125]
+RUNS_PER_LEVEL = 20
+
+
+def scenario_text(runs, imaging, detector, levels=(1.0,)):
+    """biplanar_realistic.toml with `runs` runs per level at the exposure `levels` and the
+    variant's lines added to [imaging] and [imaging.detector]."""
     text = (ROOT / "scenarios/biplanar_realistic.toml").read_text()
+    old_levels = "exposure_levels = [%s]" % ", ".join(repr(x) for x in LEVELS)
+    if old_levels not in text or f"runs_per_level = {RUNS_PER_LEVEL}" not in text:
+        sys.exit("scenarios/biplanar_realistic.toml no longer has the protocol bench/bias.py expects")
     text = text.replace('file = "models/', f'file = "{ROOT}/scenarios/models/')
-    text = text.replace("exposure_levels = [2.0, 1.0, 0.5, 0.25, 0.125]", "exposure_levels = [1.0]")
-    text = text.replace("runs_per_level = 20", f"runs_per_level = {runs}")
+    text = text.replace(old_levels, "exposure_levels = [%s]" % ", ".join(repr(x) for x in levels))
+    text = text.replace(f"runs_per_level = {RUNS_PER_LEVEL}", f"runs_per_level = {runs}")
     text = text.replace("mas = 10.0", "\n".join(["mas = 10.0"] + imaging), 1)
     text = text.replace('polarity = "radiograph"', "\n".join(detector + ['polarity = "radiograph"']), 1)
     return text

@@ -29,25 +29,7 @@ import tempfile
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import stamp  # noqa: E402
-from bias import VARIANTS, run  # noqa: E402
-
-ROOT = stamp.ROOT
-LEVELS = [2.0, 1.0, 0.5, 0.25, 0.125]
-RUNS_PER_LEVEL = 20
-
-
-def scenario_text(level, factor, imaging, detector):
-    text = (ROOT / "scenarios/biplanar_realistic.toml").read_text()
-    text = text.replace('file = "models/', f'file = "{ROOT}/scenarios/models/')
-    levels = list(LEVELS)
-    levels[level] = factor
-    old = "exposure_levels = [2.0, 1.0, 0.5, 0.25, 0.125]"
-    if old not in text or f"runs_per_level = {RUNS_PER_LEVEL}" not in text:
-        sys.exit("scenarios/biplanar_realistic.toml no longer has the protocol this script expects")
-    text = text.replace(old, "exposure_levels = [%s]" % ", ".join(repr(x) for x in levels))
-    text = text.replace("mas = 10.0", "\n".join(["mas = 10.0"] + imaging), 1)
-    text = text.replace('polarity = "radiograph"', "\n".join(detector + ['polarity = "radiograph"']), 1)
-    return text
+from bias import LEVELS, RUNS_PER_LEVEL, VARIANTS, run, scenario_text  # noqa: E402
 
 
 def rotation_vector_deg(r):
@@ -98,10 +80,12 @@ def main():
         for name, factor in cases:
             imaging, detector = VARIANTS[name]
             scen = pathlib.Path(tmp) / f"{name}-{factor:g}.toml"
-            scen.write_text(scenario_text(level, factor, imaging, detector))
+            levels = list(LEVELS)
+            levels[level] = factor
+            scen.write_text(scenario_text(RUNS_PER_LEVEL, imaging, detector, levels))
             out = pathlib.Path(tmp) / f"{name}-{factor:g}"
             run([binary, str(scen), "--out", str(out), "--shard", shard,
-                 "--allow-dir", str(ROOT / "scenarios/models")])
+                 "--allow-dir", str(stamp.ROOT / "scenarios/models")])
             folder = next(out.iterdir())
             run([binary, "reconstruct", str(folder), "--model-method", "silhouette"])
             rot, pos, contour = femur_error(folder / "runs" / args.run)
