@@ -272,7 +272,7 @@ def cmd_realistic(args, sub):
         table = rt.by_level(reports, REALISTIC_ROWS)
         runs = len(list((o.dir / "runs").iterdir()))
         note = (f"`{scenario}` with runs_per_level = {args.runs} ({runs} runs); DLT calibration, "
-                "Gaussian-fit bead centres; each cell the largest |T| ± the largest P over the columns "
+                "Gaussian-fit bead centres (sphere fit on point-sampled unblurred images); each cell the largest |T| ± the largest P over the columns "
                 "named, which may come from different columns")
         stamp.write(tables_dir(args) / f"accuracy-{name}.md", command(args, sub), table, binary, note=note)
         if not args.no_detection:

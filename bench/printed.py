@@ -9,8 +9,8 @@ load average at the start and at the end.
     bench/printed.py detection OUT FILE     # reconstruct_realistic::measure_detection_on_an_output
                                             #   on an attenuation-mode output (bench/accuracy.py
                                             #   realistic and blurred call it)
-    bench/printed.py bead-centres           # reconstruct_realistic::beads_are_found_…: centroid
-                                            #   against Gaussian fit -> bead-centre-methods.md
+    bench/printed.py bead-centres           # reconstruct_realistic::beads_are_found_…: centroid,
+                                            #   Gaussian fit, sphere fit -> bead-centre-methods.md
     bench/printed.py sampling               # sampling:: -> sampling-bead-centroids.md
     bench/printed.py adaptive               # examples/adaptive_check.rs on the blurred scenario
                                             #   -> adaptive-sampling.md
@@ -120,14 +120,15 @@ def cmd_bead_centres(args):
     binary = stamp.release_binary()
     text = cargo_test("reconstruct_realistic::beads_are_found_at_every_exposure_sharp_and_blurred_and_never_over_the_metal")
     pat = re.compile(r"^×([\d.]+) σ ([\d.]+): centroid mean ([\d.]+) p95 ([\d.]+); "
-                     r"Gaussian fit mean ([\d.]+) p95 ([\d.]+) px$")
-    rows = ["| images | centroid: mean / p95 (px) | Gaussian fit: mean / p95 (px) |", "|---|---|---|"]
+                     r"Gaussian fit mean ([\d.]+) p95 ([\d.]+); sphere fit mean ([\d.]+) p95 ([\d.]+) px$")
+    rows = ["| images | centroid: mean / p95 (px) | Gaussian fit: mean / p95 (px) "
+            "| sphere fit: mean / p95 (px) |", "|---|---|---|---|"]
     for line in text.splitlines():
         m = pat.match(line.strip())
         if m:
-            factor, blur, cm, cp, gm, gp = m.groups()
+            factor, blur, cm, cp, gm, gp, pm, pp = m.groups()
             what = "sharp" if float(blur) == 0 else f"blurred after sampling (σ {float(blur):g} px)"
-            rows.append(f"| {what}, exposure ×{float(factor):g} | {cm} / {cp} | {gm} / {gp} |")
+            rows.append(f"| {what}, exposure ×{float(factor):g} | {cm} / {cp} | {gm} / {gp} | {pm} / {pp} |")
     if len(rows) < 3:
         sys.exit(f"no centroid lines in the test's output:\n{text[-3000:]}")
     write(args, "bead-centre-methods.md", "bench/printed.py bead-centres", "\n".join(rows), binary,

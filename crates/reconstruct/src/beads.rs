@@ -30,11 +30,14 @@
 //!    pixels off by more than 3 noise SDs: a bone edge or a neighbour); the intensity centroid of
 //!    the background-subtracted attenuation over a disc of radius `⌈r⌉ + 2`, recentred three
 //!    times, starts a least-squares fit of a circular Gaussian to the window, whose centre is
-//!    the bead's ([`Centre`]; the fit halves the centroid's error on the project's images, as
-//!    `tests/reconstruct_realistic.rs` measures).
+//!    the bead's; on an image of one ray per pixel centre from a point source without blur, a
+//!    sphere's chord profile is then fitted from there, and its centre is the bead's ([`Centre`],
+//!    [`super::bead_profile`]; each fit more accurate than the step before on the images it is
+//!    used for, as `tests/reconstruct_realistic.rs` measures).
 
 use glam::DVec2;
 
+use super::bead_profile::{Sample, gaussian_fit, sphere_fit};
 use super::density::Density;
 use super::detect::Blob;
 use super::shadow::dense_shadow;
@@ -49,6 +52,8 @@ const CENTROID_ITERATIONS: usize = 3;
 /// The geometry of the filter and windows for a bead of radius `r` pixels.
 #[derive(Debug, Clone, Copy)]
 struct Scale {
+    /// The bead's expected radius, pixels.
+    radius_px: f64,
     /// Inner box half-size.
     inner: usize,
     /// Excluded box half-size (the bead and its blur).
@@ -67,6 +72,7 @@ impl Scale {
         let inner = ((r / std::f64::consts::SQRT_2).floor() as usize).max(1);
         let clear = r.ceil() as usize + 2;
         Scale {
+            radius_px: r,
             inner,
             clear,
             outer: clear + 2,
@@ -204,10 +210,15 @@ pub enum Centre {
     /// The background-subtracted intensity centroid over a disc, recentred.
     Centroid,
     /// A least-squares fit of a circular Gaussian (amplitude, centre, width) to the
-    /// background-subtracted window, started at the centroid (the default: the more accurate
-    /// of the two on the project's images, sharp or blurred; see docs/src/guide/reference-program.md).
+    /// background-subtracted window, started at the centroid (the default: more accurate than
+    /// the centroid on the project's images, sharp or blurred; see
+    /// docs/src/guide/reference-program.md).
     #[default]
     GaussianFit,
+    /// The Gaussian's fit, then a fit of a sphere's chord profile sampled at the pixel centres
+    /// from the Gaussian's centre ([`super::bead_profile`]): for images of one ray per pixel
+    /// centre from a point source without blur, where the Gaussian pixel-locks.
+    SphereFit,
 }
 
 /// The beads of radius `radius_px` (pixels) in `img`, as blobs: sub-pixel centre, and as area the
@@ -258,6 +269,9 @@ pub enum Rejection {
     Centroid,
     /// The Gaussian fit fails or moves more than 1 px from the centroid.
     GaussianFit,
+    /// The sphere's fit ([`Centre::SphereFit`]) fails, or its centre moves more than 1 px from
+    /// the Gaussian's.
+    SphereFit,
 }
 
 /// What the detector sees at one place of an image ([`probe`]).
@@ -643,60 +657,27 @@ fn measure(
         }
         centre = next;
     }
-    if how == Centre::GaussianFit {
-        centre = gaussian_fit(i, j, c, &excess, centre).ok_or(Rejection::GaussianFit)?;
+    if how != Centre::Centroid {
+        let pts: Vec<Sample> = (j - c..=j + c)
+            .flat_map(|y| (i - c..=i + c).map(move |x| (x, y)))
+            .map(|(x, y)| (DVec2::new(x as f64 + 0.5, y as f64 + 0.5), excess(x, y)))
+            .collect();
+        // σ starts at a third of the window.
+        let sigma_start_px = c as f64 / 3.0;
+        centre = gaussian_fit(&pts, centre, sigma_start_px)
+            .ok_or(Rejection::GaussianFit)?
+            .centre;
+        if how == Centre::SphereFit {
+            centre = sphere_fit(&pts, centre, s.radius_px)
+                .ok_or(Rejection::SphereFit)?
+                .centre;
+        }
     }
     Ok(Blob {
         centroid: centre,
         area,
         bbox,
     })
-}
-
-/// The centre of a circular Gaussian `A·exp(−|p − m|²/(2σ²))` fitted by Gauss–Newton to the
-/// `excess` of the pixels within `c` of the window's centre pixel (i, j), from `start`.
-fn gaussian_fit(
-    i: usize,
-    j: usize,
-    c: usize,
-    excess: &impl Fn(usize, usize) -> f64,
-    start: DVec2,
-) -> Option<DVec2> {
-    let pts: Vec<(DVec2, f64)> = (j - c..=j + c)
-        .flat_map(|y| (i - c..=i + c).map(move |x| (x, y)))
-        .map(|(x, y)| (DVec2::new(x as f64 + 0.5, y as f64 + 0.5), excess(x, y)))
-        .collect();
-    let peak = pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-    // Parameters: amplitude, centre u, v, ln σ (σ starts at a third of the window).
-    let mut q = [peak, start.x, start.y, libm::log(c as f64 / 3.0)];
-    for _ in 0..20 {
-        let mut h = nalgebra::Matrix4::<f64>::zeros();
-        let mut g = nalgebra::Vector4::<f64>::zeros();
-        let sigma = libm::exp(q[3]);
-        for &(p, v) in &pts {
-            let d = p - DVec2::new(q[1], q[2]);
-            let r2 = d.length_squared();
-            let e = libm::exp(-r2 / (2.0 * sigma * sigma));
-            let model = q[0] * e;
-            let jac = nalgebra::Vector4::new(
-                e,
-                model * d.x / (sigma * sigma),
-                model * d.y / (sigma * sigma),
-                model * r2 / (sigma * sigma),
-            );
-            h += jac * jac.transpose();
-            g += jac * (v - model);
-        }
-        let step = h.lu().solve(&g)?;
-        for k in 0..4 {
-            q[k] += step[k].clamp(-1.0, 1.0);
-        }
-        if step.iter().all(|x| x.abs() < 1e-7) {
-            break;
-        }
-    }
-    let m = DVec2::new(q[1], q[2]);
-    ((m - start).length() <= 1.0 && q[0] > 0.0).then_some(m)
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ use rsasim_core::{attenuation, diagnostic, expand, geometry, phantom, scenario, 
 use rsasim_files::output;
 use rsasim_migration as migration;
 pub mod bead_centre;
+pub mod bead_profile;
 pub mod beads;
 pub mod calibrate;
 pub mod contour;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::beads::{find_beads, implant_metal_mask, metal_mask, touches};
+use super::beads::{Centre, find_beads_by, implant_metal_mask, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
@@ -34,7 +34,7 @@ use crate::output::measured::{
     FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
     OccludedBead,
 };
-use crate::scenario::PlateRole;
+use crate::scenario::{PlateRole, Scenario};
 use crate::trace::{MeshBvh, Object, render_binary};
 
 /// How far (pixels) a nominal prediction may be from the bead's real image.
@@ -520,7 +520,7 @@ fn calibrate_beamline(
 
 /// One image's bead candidates and, in attenuation mode, its metal shadow.
 struct BeadImage {
-    /// Bead candidates: blobs at I_max (binary mode) or [`find_beads`]'s beads.
+    /// Bead candidates: blobs at I_max (binary mode) or [`find_beads_by`]'s beads.
     blobs: Vec<Blob>,
     /// The metal shadow ([`implant_metal_mask`] in an image of a metal implant, else the clipped
     /// components only), row-major; empty in binary mode.
@@ -556,7 +556,7 @@ impl BeadImage {
             None => metal_mask(&img, min_area),
         };
         BeadImage {
-            blobs: find_beads(&img, radius_px, &metal),
+            blobs: find_beads_by(&img, radius_px, &metal, bead_centre_method(&setup.scenario)),
             metal,
             width,
         }
@@ -566,6 +566,23 @@ impl BeadImage {
     /// pixel): its centre cannot be measured there.
     fn occludes(&self, uv: DVec2, radius_px: f64) -> bool {
         !self.metal.is_empty() && touches(&self.metal, self.width, uv, radius_px + 1.0)
+    }
+}
+
+/// How bead centres are measured in the attenuation images of `scenario` ([`Centre`]): by the
+/// sphere's chord profile when its nominal imaging chain declares one ray per pixel centre from a
+/// point source, with no detector PSF or MTF and no motion during a pulse (the profile is then
+/// the sphere's, and the Gaussian pixel-locks); by the Gaussian otherwise.
+fn bead_centre_method(scenario: &Scenario) -> Centre {
+    let imaging = &scenario.imaging;
+    let point_sampled = imaging.pixel_samples.unwrap_or(1) <= 1 && imaging.focal_spot.is_none();
+    let unblurred = imaging.detector.psf.is_none() && imaging.detector.mtf.is_none();
+    let still =
+        (scenario.sequence.as_ref()).is_none_or(|s| !(s.pulse_ms > 0.0) || s.pulse_samples <= 1);
+    if point_sampled && unblurred && still {
+        Centre::SphereFit
+    } else {
+        Centre::GaussianFit
     }
 }
 
