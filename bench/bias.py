@@ -11,7 +11,9 @@ beamlines:
   - the lateral source error (mm, the rest of the error vector);
   - the femur's position error (mm) and the box beads matched per view.
 
-Every variant shares the base scenario's seed, so runs compare draw by draw.
+Every variant shares the base scenario's seed, so runs compare draw by draw. A variant named
+`NAME/PROFILE` reconstructs the images of variant NAME again with `--bead-centre PROFILE`: the
+same images, only the bead-centre model changed.
 
 Usage: bench/bias.py [--runs N] [--bin PATH] [--variants a,b,...]
 Prints a Markdown table stamped with commit, machine and date.
@@ -49,6 +51,12 @@ VARIANTS = {
 }
 
 
+# The rows of the table: the variants, and two of them measured again with Gaussian bead centres
+# (the reference program fits a sphere's profile to the beads of their sharp images).
+ROWS = ["sharp", "sharp/gaussian", "area", "spot", "spot+heel", "psf", "scatter", "scatter/gaussian",
+        "noise", "all"]
+
+
 # The shipped protocol of biplanar_realistic.toml, which scenario_text rewrites.
 LEVELS = [2.0, 1.0, 0.5, 0.25, 0.125]
 RUNS_PER_LEVEL = 20
@@ -84,11 +92,11 @@ def mean_sd(v):
     return m, sd
 
 
-def measure(out):
+def measure(out, measured="measured-rsasim-dlt-markers.json"):
     depth, lateral, femur, matched = [], [], [], []
     for run_dir in sorted((out / "runs").iterdir()):
         truth = json.loads((run_dir / "truth.json").read_text())
-        found = run_dir / "measured-rsasim-dlt-markers.json"
+        found = run_dir / measured
         if not found.exists():
             continue
         measured = json.loads(found.read_text())
@@ -120,7 +128,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=4)
     ap.add_argument("--bin", default=None, help="rsasim binary (default: the release build, built)")
-    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--variants", default=",".join(ROWS))
     args = ap.parse_args()
     binary = args.bin
     if binary is None:
@@ -130,15 +138,22 @@ def main():
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.variants.split(","):
-            imaging, detector = VARIANTS[name]
-            scen = pathlib.Path(tmp) / f"{name}.toml"
-            scen.write_text(scenario_text(args.runs, imaging, detector))
-            out = pathlib.Path(tmp) / name
-            run([binary, str(scen), "--out", str(out), "--allow-dir", str(ROOT / "scenarios/models")])
-            run([binary, "reconstruct", str(out)])
-            depth, lateral, femur, matched = measure(out)
+            variant, _, centre = name.partition("/")
+            if variant not in VARIANTS or centre not in ("", "gaussian", "sphere"):
+                sys.exit(f"unknown variant {name}: one of {', '.join(VARIANTS)}, optionally /gaussian or /sphere")
+            imaging, detector = VARIANTS[variant]
+            out = pathlib.Path(tmp) / variant
+            if not out.exists():
+                scen = pathlib.Path(tmp) / f"{variant}.toml"
+                scen.write_text(scenario_text(args.runs, imaging, detector))
+                run([binary, str(scen), "--out", str(out), "--allow-dir", str(ROOT / "scenarios/models")])
+            measured = f"measured-rsasim-dlt-markers{'-' + centre if centre else ''}.json"
+            centre_args = ["--bead-centre", centre, "--measured", measured] if centre else []
+            run([binary, "reconstruct", str(out), *centre_args])
+            depth, lateral, femur, matched = measure(out, measured)
             fmt = lambda v: "%.3f ± %.3f (n %d)" % (*mean_sd(v), len(v))
-            print(f"| {name} | {fmt(depth)} | {fmt(lateral)} | {fmt(femur)} | {fmt(matched)} |", flush=True)
+            label = f"{variant}, {centre.capitalize() if centre == 'gaussian' else centre} bead centres" if centre else variant
+            print(f"| {label} | {fmt(depth)} | {fmt(lateral)} | {fmt(femur)} | {fmt(matched)} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ pub fn execute(args: ReconstructArgs) -> Outcome {
         measured: args.measured,
         overwrite: args.overwrite,
         stability_threshold_mm: Some(args.stability_threshold_mm),
+        bead_centre: args.bead_centre.into(),
     };
     reconstruct_any(&args.out, &options)
 }

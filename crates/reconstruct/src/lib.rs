@@ -106,6 +106,9 @@ pub struct Options {
     /// A clinical study's marker-stability threshold, mm; `None`:
     /// [`crate::migration::DEFAULT_STABILITY_THRESHOLD_MM`].
     pub stability_threshold_mm: Option<f64>,
+    /// The profile fitted to a bead in attenuation-mode images; `None`: chosen per set-up
+    /// ([`pipeline::bead_centre_method`]).
+    pub bead_centre: Option<beads::Centre>,
 }
 
 /// A run's entity that could not be reconstructed.
@@ -234,7 +237,7 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
     }
     // A clinical study's design, read (and checked against the manifest) before any run is.
     let design = crate::output::study::read_study(out)?;
-    let software = pipeline::software(options.method, label);
+    let software = pipeline::software(options.method, label, options.bead_centre);
     // Each mesh model that will be fitted by its outline is prepared once for all runs.
     let mut outlines = BTreeMap::new();
     for (id, mesh) in &setup.meshes {
@@ -249,22 +252,25 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
             outlines.insert(id.clone(), model);
         }
     }
+    let metal = pipeline::MetalMeshes::of(&setup);
     let methods = pipeline::Methods {
         calibration: options.method,
         model: options.model_method,
+        bead_centre: options.bead_centre,
     };
     let results: Vec<(String, Result<pipeline::RunResult, String>)> = runs
         .par_iter()
         .map(|(id, dir)| {
-            let r = pipeline::reconstruct_run(&setup, &outlines, id, dir, methods, &software)
-                .and_then(|r| {
-                    let mut bytes =
-                        serde_json::to_vec_pretty(&r.measured).map_err(|e| e.to_string())?;
-                    bytes.push(b'\n');
-                    write_atomic(&dir.join(&name), &bytes)
-                        .map(|_| r)
-                        .map_err(|e| format!("writing {}: {e}", dir.join(&name).display()))
-                });
+            let r =
+                pipeline::reconstruct_run(&setup, &outlines, &metal, id, dir, methods, &software)
+                    .and_then(|r| {
+                        let mut bytes =
+                            serde_json::to_vec_pretty(&r.measured).map_err(|e| e.to_string())?;
+                        bytes.push(b'\n');
+                        write_atomic(&dir.join(&name), &bytes)
+                            .map(|_| r)
+                            .map_err(|e| format!("writing {}: {e}", dir.join(&name).display()))
+                    });
             (id.clone(), r)
         })
         .collect();

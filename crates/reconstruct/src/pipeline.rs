@@ -56,6 +56,9 @@ pub struct Methods {
     pub calibration: Method,
     /// How every model is found; `None`: by [`ModelMethod::for_model`].
     pub model: Option<ModelMethod>,
+    /// The profile fitted to a bead in attenuation-mode images; `None`:
+    /// [`bead_centre_method`].
+    pub bead_centre: Option<Centre>,
 }
 
 /// What `software` of every results file rsasim writes starts with; a results file whose
@@ -65,9 +68,15 @@ pub const SOFTWARE_PREFIX: &str = crate::output::measured::REFERENCE_SOFTWARE_PR
 /// The software's name in the results file: `rsasim reconstruct <version> (<calibration>,
 /// <model>)`, e.g. `rsasim reconstruct 0.1.0 (dlt, markers)`; `model` is the model method's
 /// name, or `auto` when models use different methods (the file's `methods` says which).
-pub fn software(calibration: Method, model: &str) -> String {
+pub fn software(calibration: Method, model: &str, bead_centre: Option<Centre>) -> String {
+    let centre = match bead_centre {
+        None => "",
+        Some(Centre::Centroid) => ", centroid bead centres",
+        Some(Centre::GaussianFit) => ", Gaussian bead centres",
+        Some(Centre::SphereFit) => ", sphere bead centres",
+    };
     format!(
-        "{SOFTWARE_PREFIX}{} ({}, {model})",
+        "{SOFTWARE_PREFIX}{} ({}, {model}{centre})",
         env!("CARGO_PKG_VERSION"),
         calibration.name()
     )
@@ -101,6 +110,7 @@ struct PlateUse {
 pub fn reconstruct_run(
     setup: &Setup,
     outlines: &BTreeMap<String, OutlineModel>,
+    metal: &MetalMeshes,
     run_id: &str,
     dir: &Path,
     methods: Methods,
@@ -221,7 +231,8 @@ pub fn reconstruct_run(
             &pixels,
             w as usize,
             mean_radius_px(&preds),
-            implant_in(setup, &exposure.id, &frame, source),
+            implant_in(setup, metal, &exposure.id, &frame, source),
+            methods.bead_centre,
         );
         match calibrate_beamline(&facing, &preds, &image, box_beads, det, fit) {
             Ok(c) => {
@@ -285,6 +296,8 @@ pub fn reconstruct_run(
             ModelMethod::Markers => match beads {
                 Some(beads) => find_model(
                     setup,
+                    metal,
+                    methods.bead_centre,
                     dir,
                     &exposure.id,
                     &beamlines,
@@ -300,6 +313,7 @@ pub fn reconstruct_run(
             ModelMethod::Silhouette => match outlines.get(&phantom.id) {
                 Some(model) => find_model_by_outline(
                     setup,
+                    metal,
                     dir,
                     &exposure.id,
                     &beamlines,
@@ -531,7 +545,8 @@ struct BeadImage {
 
 impl BeadImage {
     /// The candidates of one image of detector `det` for beads of about `radius_px` pixels;
-    /// `implant`: the metal implant the image shows ([`implant_in`]).
+    /// `implant`: the metal implant the image shows ([`implant_in`]); `centre`: the profile fitted
+    /// to a bead (`None`: [`bead_centre_method`]).
     fn read(
         setup: &Setup,
         det: &DetectorState,
@@ -539,6 +554,7 @@ impl BeadImage {
         width: usize,
         radius_px: f64,
         implant: Option<Implant>,
+        centre: Option<Centre>,
     ) -> BeadImage {
         let imaging = &setup.scenario.imaging;
         if !imaging.is_attenuation() {
@@ -556,7 +572,12 @@ impl BeadImage {
             None => metal_mask(&img, min_area),
         };
         BeadImage {
-            blobs: find_beads_by(&img, radius_px, &metal, bead_centre_method(&setup.scenario)),
+            blobs: find_beads_by(
+                &img,
+                radius_px,
+                &metal,
+                centre.unwrap_or_else(|| bead_centre_method(&setup.scenario)),
+            ),
             metal,
             width,
         }
@@ -573,7 +594,7 @@ impl BeadImage {
 /// sphere's chord profile when its nominal imaging chain declares one ray per pixel centre from a
 /// point source, with no detector PSF or MTF and no motion during a pulse (the profile is then
 /// the sphere's, and the Gaussian pixel-locks); by the Gaussian otherwise.
-fn bead_centre_method(scenario: &Scenario) -> Centre {
+pub fn bead_centre_method(scenario: &Scenario) -> Centre {
     let imaging = &scenario.imaging;
     let point_sampled = imaging.pixel_samples.unwrap_or(1) <= 1 && imaging.focal_spot.is_none();
     let unblurred = imaging.detector.psf.is_none() && imaging.detector.mtf.is_none();
@@ -594,6 +615,24 @@ struct Implant {
     expected_area_px: Option<f64>,
 }
 
+/// The meshes of the metal phantoms (by phantom id), each with its bounding volume hierarchy,
+/// built once for every run: an implant's expected shadow is rendered for each image, and
+/// building the hierarchy anew each time showed in `reconstruct`'s profile.
+pub struct MetalMeshes(BTreeMap<String, MeshBvh>);
+
+impl MetalMeshes {
+    /// The metal phantoms' meshes of `setup`.
+    pub fn of(setup: &Setup) -> MetalMeshes {
+        let scenario = &setup.scenario;
+        MetalMeshes(
+            (scenario.phantoms.iter())
+                .filter(|p| p.material.as_deref().is_some_and(|m| scenario.is_metal(m)))
+                .filter_map(|p| Some((p.id.clone(), MeshBvh::new(setup.meshes.get(&p.id)?))))
+                .collect(),
+        )
+    }
+}
+
 /// The metal implant in the image of `exposure` taken on `frame` from `source_mm`: `None` when
 /// the exposure shows no phantom of metal ([`crate::scenario::Scenario::is_metal`]). The
 /// operator knows when an implant is in the picture, and only then is a dense shadow that does
@@ -602,6 +641,7 @@ struct Implant {
 /// rendered at a quarter of the resolution.
 fn implant_in(
     setup: &Setup,
+    meshes: &MetalMeshes,
     exposure: &str,
     frame: &DetectorFrame,
     source_mm: DVec3,
@@ -620,12 +660,12 @@ fn implant_in(
     if metal.is_empty() {
         return None;
     }
-    let bvhs: Vec<(MeshBvh, Pose)> = metal
+    let bvhs: Vec<(&MeshBvh, Pose)> = metal
         .iter()
         .filter_map(|id| {
-            let mesh = setup.meshes.get(*id)?;
+            let bvh = meshes.0.get(*id)?;
             let pose = setup.nominal.phantoms.iter().find(|p| p.id == *id)?.pose();
-            Some((MeshBvh::new(mesh), pose))
+            Some((bvh, pose))
         })
         .collect();
     if bvhs.is_empty() {
@@ -676,6 +716,8 @@ fn mean_radius_px(preds: &[Prediction]) -> f64 {
 /// it is found with them.
 fn find_model(
     setup: &Setup,
+    metal: &MetalMeshes,
+    bead_centre: Option<Centre>,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
@@ -702,7 +744,8 @@ fn find_model(
             &px,
             w as usize,
             radius_px,
-            implant_in(setup, exposure, &frame, c.beamline.source_mm),
+            implant_in(setup, metal, exposure, &frame, c.beamline.source_mm),
+            bead_centre,
         );
         let candidates: Vec<DVec2> = image
             .blobs
@@ -885,6 +928,7 @@ fn phantom_material<'s>(setup: &'s Setup, id: &str) -> Option<&'s str> {
 /// material predict ([`super::edge_model`]).
 fn find_model_by_outline(
     setup: &Setup,
+    metal: &MetalMeshes,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
@@ -899,7 +943,7 @@ fn find_model_by_outline(
         let imaging = &setup.scenario.imaging;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let found = if let Some((windows, sigma_px)) = attenuation_windows(setup, c, det, nominal) {
-            let expected_area_px = implant_in(setup, exposure, &frame, c.beamline.source_mm)
+            let expected_area_px = implant_in(setup, metal, exposure, &frame, c.beamline.source_mm)
                 .and_then(|i| i.expected_area_px);
             let img = density(&px, w as usize, Reading::of(imaging, det.i_max()));
             graded_outline(&img, windows, expected_area_px)
