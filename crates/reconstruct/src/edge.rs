@@ -537,9 +537,9 @@ mod tests {
 
     #[test]
     fn the_windows_follow_the_nominal_blur() {
-        // biplanar_realistic_blurred: σ 0.15 mm PSF, 1.2 mm uniform spot, 0.2986 mm pixels,
-        // model 500 mm from the detector and 1300 mm from the source: σ ≈ 0.73 px, the sharp
-        // windows; a 2 mm PSF asks for wider ones.
+        // biplanar_realistic_blurred's PSF and spot, one ray per pixel: σ 0.15 mm PSF, 1.2 mm
+        // uniform spot, 0.2986 mm pixels, model 500 mm from the detector and 1300 mm from the
+        // source: σ ≈ 0.67 px, the sharp windows; a 1 mm PSF asks for wider ones.
         let mut imaging: Imaging = toml::from_str(
             "mode = \"attenuation\"\nfocal_spot = { size_mm = 1.2 }\n[detector]\npsf = { sigma_mm = 0.15 }\n",
         )
@@ -549,11 +549,33 @@ mod tests {
             EdgeWindows::SHARP
         );
         imaging.detector.psf = Some(crate::scenario::PsfOption { sigma_mm: 1.0 });
-        // σ = √((1.0² + (0.346·0.385)²)/0.2986² + 1/12) = 3.39 px → levels from 7 px.
+        // σ = √((1.0² + (0.346·0.385)²)/0.2986²) = 3.38 px → levels from 7 px.
         assert_eq!(
             EdgeWindows::for_imaging(&imaging, 0.2986, 500.0 / 1300.0).near_px,
             7
         );
+    }
+
+    #[test]
+    fn a_pixel_blurs_by_its_sampling_not_by_its_area() {
+        // s × s rays per pixel: along each axis s points 1/s px apart, a discrete uniform
+        // distribution of variance (s² − 1)/(12 s²) px² (by hand: s = 2, offsets ±1/4, variance
+        // 1/16). One ray to the centre samples the edge and does not blur it.
+        let sigma = |samples: &str| {
+            let imaging: Imaging =
+                toml::from_str(&format!("mode = \"attenuation\"\n{samples}")).unwrap();
+            nominal_blur_px(&imaging, 0.3, 0.4)
+        };
+        assert_eq!(sigma(""), 0.0);
+        assert_eq!(sigma("pixel_samples = 1"), 0.0);
+        assert!((sigma("pixel_samples = 2") - 0.25).abs() < 1e-12);
+        let by_hand_4 = [-0.375f64, -0.125, 0.125, 0.375]
+            .iter()
+            .map(|x| x * x / 4.0)
+            .sum::<f64>()
+            .sqrt();
+        assert!((sigma("pixel_samples = 4") - by_hand_4).abs() < 1e-12);
+        assert!((sigma("pixel_samples = 16") - (1.0f64 / 12.0).sqrt()).abs() < 0.01);
     }
 
     #[test]
