@@ -92,11 +92,11 @@ def mean_sd(v):
     return m, sd
 
 
-def measure(out, measured="measured-rsasim-dlt-markers.json"):
+def measure(out, results="measured-rsasim-dlt-markers.json"):
     depth, lateral, femur, matched = [], [], [], []
     for run_dir in sorted((out / "runs").iterdir()):
         truth = json.loads((run_dir / "truth.json").read_text())
-        found = run_dir / measured
+        found = run_dir / results
         if not found.exists():
             continue
         measured = json.loads(found.read_text())
