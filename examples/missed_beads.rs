@@ -88,7 +88,9 @@ impl Cause {
             Some(Some(Rejection::Background | Rejection::NoPeak | Rejection::Shape)) => {
                 Cause::Shape
             }
-            Some(Some(Rejection::Centroid | Rejection::GaussianFit)) => Cause::Centre,
+            Some(Some(Rejection::Centroid | Rejection::GaussianFit | Rejection::SphereFit)) => {
+                Cause::Centre
+            }
         }
     }
 
