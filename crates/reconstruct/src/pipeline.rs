@@ -295,9 +295,11 @@ pub fn reconstruct_run(
         let found = match model_method {
             ModelMethod::Markers => match beads {
                 Some(beads) => find_model(
-                    setup,
-                    metal,
-                    methods.bead_centre,
+                    BeadReading {
+                        setup,
+                        metal,
+                        centre: methods.bead_centre,
+                    },
                     dir,
                     &exposure.id,
                     &beamlines,
@@ -607,6 +609,15 @@ pub fn bead_centre_method(scenario: &Scenario) -> Centre {
     }
 }
 
+/// What reading the beads of an image of a set-up needs: the set-up, its metal meshes (for an
+/// implant's expected shadow) and the profile fitted to a bead (`None`: [`bead_centre_method`]).
+#[derive(Clone, Copy)]
+struct BeadReading<'a> {
+    setup: &'a Setup,
+    metal: &'a MetalMeshes,
+    centre: Option<Centre>,
+}
+
 /// A metal implant known to be in an image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Implant {
@@ -715,9 +726,7 @@ fn mean_radius_px(preds: &[Prediction]) -> f64 {
 /// beads so left out are reported `overprojected`. Should the model not be found without them,
 /// it is found with them.
 fn find_model(
-    setup: &Setup,
-    metal: &MetalMeshes,
-    bead_centre: Option<Centre>,
+    reading: BeadReading,
     dir: &Path,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
@@ -739,13 +748,19 @@ fn find_model(
         let radius_px = diameter / 2.0 * s.z / (s.z - z) / det.pixel_pitch_mm[0];
         let expected = bead_area_px(radius_px);
         let image = BeadImage::read(
-            setup,
+            reading.setup,
             det,
             &px,
             w as usize,
             radius_px,
-            implant_in(setup, metal, exposure, &frame, c.beamline.source_mm),
-            bead_centre,
+            implant_in(
+                reading.setup,
+                reading.metal,
+                exposure,
+                &frame,
+                c.beamline.source_mm,
+            ),
+            reading.centre,
         );
         let candidates: Vec<DVec2> = image
             .blobs
