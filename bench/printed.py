@@ -134,7 +134,7 @@ def cmd_bead_centres(args):
     write(args, "bead-centre-methods.md", "bench/printed.py bead-centres", "\n".join(rows), binary,
           note="from `cargo test --release --test integration reconstruct_realistic::"
                "beads_are_found_at_every_exposure_sharp_and_blurred_and_never_over_the_metal -- --nocapture`; "
-               "box beads of the test's own attenuation-mode scene, the same detections both ways")
+               "box beads of the test's own attenuation-mode scene, the same candidates measured three ways")
 
 
 def cmd_sampling(args):
