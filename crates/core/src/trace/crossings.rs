@@ -1,8 +1,8 @@
 //! Every crossing of a line with a mesh surface, in f64: the reference for path lengths
 //! (`path_length.rs`) and their fallback for a mesh that cannot be projected.
 //!
-//! Candidates come from the mesh's BVH, walked here in f64 with every box widened by a margin
-//! far above f64 rounding, so no triangle the line crosses is culled. Each candidate is tested
+//! Candidates come from the mesh's BVH, walked in f64 with every box widened by a margin far
+//! above f64 rounding (`MeshBvh::walk_faces`), so no triangle the line crosses is culled. Each candidate is tested
 //! with the watertight test of Woop, Benthin and Wald (as `watertight.rs`) in f64: the line is
 //! sheared onto an axis, and the three edge functions are evaluated at the line's point in the
 //! sheared plane. An edge function depends only on the edge's two (sheared) endpoints and is
@@ -15,10 +15,6 @@ use glam::{DVec2, DVec3};
 
 use super::MeshBvh;
 use super::watertight::dominant_axis;
-
-/// Margin by which every BVH box is widened for the candidate search, relative to the root box's
-/// size plus its distance from the origin (boxes are f32; the test here is f64).
-const BOX_MARGIN: f64 = 1e-9;
 
 /// A line `origin + t·direction` prepared for the watertight test: the shear that maps its
 /// direction onto the axis `kz`.
@@ -114,45 +110,18 @@ impl MeshBvh {
     /// (see the module docs). Empty for a zero direction.
     pub fn line_crossings(&self, origin: DVec3, direction: DVec3) -> Vec<f64> {
         let mut ts = Vec::new();
-        let nodes = &self.bvh.nodes;
-        if nodes.is_empty() || direction == DVec3::ZERO {
+        if direction == DVec3::ZERO {
             return ts;
         }
-        let root = &nodes[0].aabb;
-        let (root_lo, root_hi) = (root.min.as_dvec3(), root.max.as_dvec3());
-        let margin = BOX_MARGIN
-            * ((root_hi - root_lo).max_element() + root_lo.abs().max(root_hi.abs()).max_element());
         let line = ShearedLine::new(origin, direction);
-        let mut stack = vec![0usize];
-        while let Some(k) = stack.pop() {
-            let Some(node) = nodes.get(k) else {
-                continue;
-            };
-            let lo = node.aabb.min.as_dvec3() - DVec3::splat(margin);
-            let hi = node.aabb.max.as_dvec3() + DVec3::splat(margin);
-            if !line_meets_box(origin, direction, lo, hi) {
-                continue;
-            }
-            let first = node.first_index as usize;
-            if node.prim_count == 0 {
-                stack.extend([first, first + 1]);
-                continue;
-            }
-            for slot in first..first + node.prim_count as usize {
-                let Some(face) = self
-                    .bvh
-                    .primitive_indices
-                    .get(slot)
-                    .and_then(|&f| self.faces.get(f as usize))
-                else {
-                    continue;
-                };
-                let v = face.map(|i| self.vertices_mm[i as usize]);
+        self.walk_faces(
+            |lo, hi| line_meets_box(origin, direction, lo, hi),
+            |_, v| {
                 if let Some(t) = line.crossing(v) {
                     ts.push(t);
                 }
-            }
-        }
+            },
+        );
         ts.sort_by(f64::total_cmp);
         ts
     }

@@ -99,6 +99,51 @@ impl MeshBvh {
             })
     }
 
+    /// Calls `visit` with every triangle (its indices and its vertices in the local frame, f64)
+    /// of every leaf whose box `meets` accepts, walking down only through boxes it accepts. The
+    /// boxes are f32; each is widened by a margin far above f64 rounding
+    /// (`BOX_MARGIN` of the root box's size plus its distance from the origin) before `meets`
+    /// sees it, so a test in f64 culls no triangle it should keep.
+    pub(super) fn walk_faces(
+        &self,
+        meets: impl Fn(DVec3, DVec3) -> bool,
+        mut visit: impl FnMut([u32; 3], [DVec3; 3]),
+    ) {
+        /// The margin, relative.
+        const BOX_MARGIN: f64 = 1e-9;
+        let nodes = &self.bvh.nodes;
+        let Some(root) = nodes.first() else {
+            return;
+        };
+        let (root_lo, root_hi) = (root.aabb.min.as_dvec3(), root.aabb.max.as_dvec3());
+        let margin = BOX_MARGIN
+            * ((root_hi - root_lo).max_element() + root_lo.abs().max(root_hi.abs()).max_element());
+        let mut stack = vec![0usize];
+        while let Some(k) = stack.pop() {
+            let Some(node) = nodes.get(k) else {
+                continue;
+            };
+            let lo = node.aabb.min.as_dvec3() - DVec3::splat(margin);
+            let hi = node.aabb.max.as_dvec3() + DVec3::splat(margin);
+            if !meets(lo, hi) {
+                continue;
+            }
+            let first = node.first_index as usize;
+            if node.prim_count == 0 {
+                stack.extend([first, first + 1]);
+                continue;
+            }
+            for slot in first..first + node.prim_count as usize {
+                let Some(&face) = (self.bvh.primitive_indices.get(slot))
+                    .and_then(|&f| self.faces.get(f as usize))
+                else {
+                    continue;
+                };
+                visit(face, face.map(|i| self.vertices_mm[i as usize]));
+            }
+        }
+    }
+
     /// Every crossing parameter `t` (0 < t < 1) of the segment with the surface, sorted.
     pub fn segment_crossings(&self, origin: DVec3, direction: DVec3) -> Vec<f32> {
         let (o, d) = (origin.as_vec3a(), direction.as_vec3a());

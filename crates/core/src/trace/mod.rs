@@ -23,6 +23,7 @@
 mod chord_row;
 pub(crate) mod columns;
 mod crossings;
+mod fan;
 mod mesh_bvh;
 mod path_length;
 mod raster;
