@@ -140,17 +140,16 @@ pub fn density(pixels: &[u16], width: usize, reading: Reading) -> Density {
         Reading::Raw { offset, i_max: _ } => {
             let reference = open_level(pixels, offset);
             let ln_ref = libm::log(reference);
+            // One logarithm per possible value, not per pixel (the same bits).
+            let attenuation: Vec<f64> = (0..=u16::MAX)
+                .map(|v| ln_ref - libm::log((f64::from(v) - offset).max(RAW_FLOOR_DN)))
+                .collect();
+            let of = |v: u16| attenuation[usize::from(v)];
             (
+                pixels.iter().map(|&v| of(v)).collect(),
                 pixels
                     .iter()
-                    .map(|&v| ln_ref - libm::log((f64::from(v) - offset).max(RAW_FLOOR_DN)))
-                    .collect(),
-                pixels
-                    .iter()
-                    .map(|&v| {
-                        ln_ref - libm::log((f64::from(v) - offset).max(RAW_FLOOR_DN))
-                            >= DEFAULT_RADIOGRAPH_RANGE
-                    })
+                    .map(|&v| of(v) >= DEFAULT_RADIOGRAPH_RANGE)
                     .collect(),
             )
         }

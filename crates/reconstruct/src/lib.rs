@@ -22,6 +22,7 @@ pub mod edge;
 pub mod edge_model;
 pub mod model;
 pub mod model_outline;
+pub mod model_shadow;
 pub mod overprojection;
 pub mod pipeline;
 pub mod selvik;

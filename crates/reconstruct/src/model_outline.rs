@@ -18,22 +18,27 @@ const VISIBILITY_OFFSET_PX: f64 = 0.25;
 
 /// A model mesh prepared for outline projection: face normals, edge adjacency and a BVH.
 pub struct OutlineModel {
-    vertices: Vec<DVec3>,
+    pub(crate) vertices: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
     /// Unnormalised outward face normals, local frame.
-    normals: Vec<DVec3>,
+    pub(crate) normals: Vec<DVec3>,
+    /// Each face's normal times its first vertex: the face faces a point p where
+    /// `normal · p > offset` (up to rounding, `normal · (p − vertex) > 0`).
+    pub(crate) offsets: Vec<f64>,
     /// Every undirected edge once: its two vertices and its two faces.
-    edges: Vec<MeshEdge>,
+    pub(crate) edges: Vec<MeshEdge>,
     bvh: MeshBvh,
     /// Centre of the local bounding box, mm.
     pub centre_mm: DVec3,
 }
 
 #[derive(Debug, Clone, Copy)]
-struct MeshEdge {
-    a: u32,
-    b: u32,
-    faces: [u32; 2],
+pub(crate) struct MeshEdge {
+    pub(crate) a: u32,
+    pub(crate) b: u32,
+    pub(crate) faces: [u32; 2],
+    /// Whether `faces[0]` runs the edge from `a` to `b` (`faces[1]` then runs it back).
+    pub(crate) forward: bool,
 }
 
 /// One segment of the outer outline in one image.
@@ -54,7 +59,7 @@ impl OutlineModel {
             .iter()
             .map(|v| DVec3::from_array(v.map(f64::from)))
             .collect();
-        let normals = mesh
+        let normals: Vec<DVec3> = mesh
             .triangles
             .iter()
             .map(|t| {
@@ -78,6 +83,10 @@ impl OutlineModel {
                     a: x.0,
                     b: x.1,
                     faces: [x.2, y.2],
+                    forward: {
+                        let t = mesh.triangles[x.2 as usize];
+                        (0..3).any(|k| t[k] == x.0 && t[(k + 1) % 3] == x.1)
+                    },
                 }),
                 _ => {
                     return Err(
@@ -88,10 +97,14 @@ impl OutlineModel {
             }
         }
         let (lo, hi) = mesh.bounds_mm();
+        let offsets = (normals.iter().zip(&mesh.triangles))
+            .map(|(n, t)| n.dot(vertices[t[0] as usize]))
+            .collect();
         Ok(OutlineModel {
             vertices,
             triangles: mesh.triangles.clone(),
             normals,
+            offsets,
             edges,
             bvh: MeshBvh::new(mesh),
             centre_mm: (lo + hi) / 2.0,

@@ -210,22 +210,26 @@ impl<'a> CoarseView<'a> {
     /// The predicted shadow at `pose`: covered coarse pixels and their centroid (full-resolution
     /// pixel coordinates).
     fn predict(&self, model: &OutlineModel, pose: Pose) -> (Vec<(u32, u32)>, Option<DVec2>) {
-        let image = render_binary(
-            &self.frame,
-            self.view.source_mm,
-            &[Object::Mesh {
-                bvh: model.bvh(),
-                pose,
-            }],
-            1,
-        );
-        let w = self.frame.pixels[0];
-        let covered: Vec<(u32, u32)> = image
-            .iter()
-            .enumerate()
-            .filter(|(_, v)| **v != 0)
-            .map(|(k, _)| (k as u32 % w, k as u32 / w))
-            .collect();
+        // Filled from the contour generator, as `render_binary` renders it (`model_shadow`);
+        // rendered where a contour vertex does not project.
+        let covered = model
+            .shadow_pixels(&pose, self.view.source_mm, &self.frame)
+            .unwrap_or_else(|| {
+                let image = render_binary(
+                    &self.frame,
+                    self.view.source_mm,
+                    &[Object::Mesh {
+                        bvh: model.bvh(),
+                        pose,
+                    }],
+                    1,
+                );
+                let w = self.frame.pixels[0];
+                (image.iter().enumerate())
+                    .filter(|(_, v)| **v != 0)
+                    .map(|(k, _)| (k as u32 % w, k as u32 / w))
+                    .collect()
+            });
         let centroid = (!covered.is_empty()).then(|| {
             let sum = covered.iter().fold(DVec2::ZERO, |a, &(i, j)| {
                 a + DVec2::new(i as f64 + 0.5, j as f64 + 0.5)
