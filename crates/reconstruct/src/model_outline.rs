@@ -229,21 +229,39 @@ impl OutlineModel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    #[test]
-    fn visibility_from_the_shadow_is_visibility_by_rays() {
-        // The shipped femoral component in 40 poses, at full resolution: the outline whose
-        // visibility probes read the shadow's winding number is the one whose probes trace
-        // rays through the BVH, segment for segment.
+    /// The shipped femoral component (87 000 faces; folds, a box and pegs), wound outward.
+    pub(crate) fn femoral_component() -> OutlineModel {
         let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../scenarios/models/femoral_component.glb");
         let mut mesh = crate::phantom::mesh_io::load_mesh(&file, 1000.0).unwrap();
         if mesh.signed_volume_mm3() < 0.0 {
             mesh.flip_winding();
         }
-        let model = OutlineModel::new(&mesh).unwrap();
+        OutlineModel::new(&mesh).unwrap()
+    }
+
+    /// Pose `k` of a set that turns a model through many orientations about the origin.
+    pub(crate) fn turned(k: u32) -> Pose {
+        let f = f64::from(k);
+        Pose {
+            position_mm: DVec3::new(0.3 * f - 6.0, 4.0 - 0.2 * f, 0.5 * f - 10.0),
+            rotation: crate::geometry::rotation_xyz_deg([
+                9.0 * f,
+                37.0 * f % 360.0 - 180.0,
+                23.0 * f % 90.0,
+            ]),
+        }
+    }
+
+    #[test]
+    fn visibility_from_the_shadow_is_visibility_by_rays() {
+        // The shipped femoral component in 40 poses, at full resolution: the outline whose
+        // visibility probes read the shadow's winding number is the one whose probes trace
+        // rays through the BVH, segment for segment.
+        let model = femoral_component();
         let source = DVec3::new(3.0, -5.0, 1300.0);
         let frame = DetectorFrame {
             pose: Pose {
@@ -255,15 +273,7 @@ mod tests {
         };
         let mut kept = 0;
         for k in 0..40 {
-            let f = f64::from(k);
-            let pose = Pose {
-                position_mm: DVec3::new(0.3 * f - 6.0, 4.0 - 0.2 * f, 0.5 * f - 10.0),
-                rotation: crate::geometry::rotation_xyz_deg([
-                    9.0 * f,
-                    37.0 * f % 360.0 - 180.0,
-                    23.0 * f % 90.0,
-                ]),
-            };
+            let pose = turned(k);
             let by_rays = model.outline_by(&pose, source, &frame, true);
             let by_shadow = model.outline(&pose, source, &frame);
             let only = |a: &[OutlineSegment], b: &[OutlineSegment]| -> Vec<OutlineSegment> {

@@ -176,7 +176,7 @@ impl OutlineModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::phantom::mesh_io::load_mesh;
+    use crate::model_outline::tests::{femoral_component, turned};
     use crate::trace::{Object, render_binary};
 
     #[test]
@@ -184,25 +184,12 @@ mod tests {
         // The shipped femoral component (87 000 faces; folds, a box and pegs) in 40 poses,
         // seen on a quarter-resolution and a full-resolution detector: every pixel as
         // `render_binary` (front faces scan-converted, tested against a ray tracer) gives it.
-        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenarios/models/femoral_component.glb");
-        let mut mesh = load_mesh(&file, 1000.0).unwrap();
-        if mesh.signed_volume_mm3() < 0.0 {
-            mesh.flip_winding();
-        }
-        let model = OutlineModel::new(&mesh).unwrap();
+        let model = femoral_component();
         let source = DVec3::new(3.0, -5.0, 1300.0);
         let mut pixels_seen = 0;
         for k in 0..40 {
+            let pose = turned(k);
             let f = f64::from(k);
-            let pose = Pose {
-                position_mm: DVec3::new(0.3 * f - 6.0, 4.0 - 0.2 * f, 0.5 * f - 10.0),
-                rotation: crate::geometry::rotation_xyz_deg([
-                    9.0 * f,
-                    37.0 * f % 360.0 - 180.0,
-                    23.0 * f % 90.0,
-                ]),
-            };
             for (pixels, pitch) in [(360, 1.2), (1440, 0.3)] {
                 let frame = DetectorFrame {
                     pose: Pose {

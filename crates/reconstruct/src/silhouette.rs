@@ -594,17 +594,10 @@ mod tests {
     use super::*;
     use crate::contour::outline;
     use crate::geometry::{euler_xyz_deg, rotation_xyz_deg};
-    use crate::phantom::mesh_io::load_mesh;
 
     /// The knee component, as the biplanar scenario places it.
     fn femur() -> OutlineModel {
-        let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenarios/models/femoral_component.glb");
-        let mut mesh = load_mesh(&file, 1000.0).unwrap();
-        if mesh.signed_volume_mm3() < 0.0 {
-            mesh.flip_winding();
-        }
-        OutlineModel::new(&mesh).unwrap()
+        crate::model_outline::tests::femoral_component()
     }
 
     /// Two orthogonal beamlines (as in biplanar.toml, detectors cut to 600² pixels of 0.3 mm)
