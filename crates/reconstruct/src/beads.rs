@@ -40,7 +40,7 @@ use glam::DVec2;
 use super::bead_profile::{Sample, gaussian_fit, sphere_fit};
 use super::density::Density;
 use super::detect::Blob;
-use super::shadow::dense_shadow;
+use super::shadow::{Shadow, dense_shadow};
 
 /// Candidates must exceed the matched filter's noise this many times.
 pub const MIN_SNR: f64 = 6.0;
@@ -176,8 +176,18 @@ pub fn implant_metal_mask(
     min_area: usize,
     expected_area_px: Option<f64>,
 ) -> Vec<bool> {
+    implant_metal_mask_with(img, min_area, dense_shadow(img, expected_area_px).as_ref())
+}
+
+/// [`implant_metal_mask`] with the implant's dense shadow already segmented (`shadow`, as
+/// [`dense_shadow`] gives it for the image).
+pub fn implant_metal_mask_with(
+    img: &Density,
+    min_area: usize,
+    shadow: Option<&Shadow>,
+) -> Vec<bool> {
     let mut mask = metal_mask(img, min_area);
-    if let Some(shadow) = dense_shadow(img, expected_area_px).filter(|s| s.blob.area >= min_area) {
+    if let Some(shadow) = shadow.filter(|s| s.blob.area >= min_area) {
         for (m, s) in mask.iter_mut().zip(&shadow.mask) {
             *m |= *s;
         }

@@ -28,7 +28,7 @@ use glam::DVec2;
 use super::contour::Outline;
 use super::density::Density;
 use super::model_outline::OutlineSegment;
-use super::shadow::dense_shadow;
+use super::shadow::{Shadow, dense_shadow};
 use crate::scenario::{Imaging, SpotProfile};
 
 /// The implant's local plateau transmits at most this fraction of its local background (a step
@@ -118,12 +118,20 @@ pub fn graded_outline(
     windows: EdgeWindows,
     expected_area_px: Option<f64>,
 ) -> Option<Outline> {
+    if img.width < 2 || img.height < 2 {
+        return None;
+    }
+    graded_outline_of(img, windows, &dense_shadow(img, expected_area_px)?)
+}
+
+/// [`graded_outline`] of the implant's dense shadow already segmented (`shadow`, as
+/// [`dense_shadow`] gives it for `img`).
+pub fn graded_outline_of(img: &Density, windows: EdgeWindows, shadow: &Shadow) -> Option<Outline> {
     let (w, h) = (img.width, img.height);
     if w < 2 || h < 2 {
         return None;
     }
-    let shadow = dense_shadow(img, expected_area_px)?;
-    let (mask, largest, level) = (shadow.mask, shadow.blob, shadow.level);
+    let (mask, largest, level) = (&shadow.mask, &shadow.blob, shadow.level);
     let [i0, j0, i1, j1] = largest.bbox.map(|v| v as usize);
     let mut edge_points = Vec::new();
     for j in j0.saturating_sub(1)..=(j1 + 1).min(h - 1) {
@@ -154,7 +162,7 @@ pub fn graded_outline(
     Some(Outline {
         width: w,
         height: h,
-        mask,
+        mask: mask.clone(),
         area: largest.area,
         centroid: largest.centroid,
         edge_points,

@@ -25,6 +25,7 @@ pub mod model_outline;
 pub mod model_shadow;
 pub mod overprojection;
 pub mod pipeline;
+pub mod run_images;
 pub mod selvik;
 pub mod shadow;
 pub mod silhouette;

@@ -4,21 +4,23 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::beads::{Centre, find_beads_by, implant_metal_mask, metal_mask, touches};
+use super::beads::{Centre, find_beads_by, implant_metal_mask_with, metal_mask, touches};
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
-use super::density::{Density, Reading, density};
+use super::density::{Density, Reading};
 use super::detect::{Blob, bead_area_px, fits_one_bead};
-use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline, nominal_blur_px};
+use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline_of, nominal_blur_px};
 use super::edge_model::{EdgeModel, MetalTransmission};
 use super::model::View;
 use super::model_outline::OutlineModel;
 use super::model_outline::OutlineSegment;
 use super::overprojection::overprojected;
+use super::run_images::{RunImage, RunImages};
 use super::selvik::calibrate_selvik;
 use super::silhouette::{
     GOOD_FIT_PX, MIN_OUTLINE_AGREEMENT, REMEASURE_ROUNDS, Remeasure, SilhouetteView,
@@ -28,7 +30,6 @@ use super::split::bead_blobs;
 use super::{Method, ModelMethod};
 use crate::expand::{DetectorState, PhantomState};
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
-use crate::output::decode::read_image;
 use crate::output::exam::{Setup, TableBead};
 use crate::output::measured::{
     FitQuality, MEASURED_FORMAT, Measured, MeasuredMethods, MeasuredPoint, MeasuredPose,
@@ -194,9 +195,10 @@ pub fn reconstruct_run(
         })
         .collect();
 
+    let images = RunImages::new(dir);
     let mut beamlines: BTreeMap<String, (Calibrated, &DetectorState)> = BTreeMap::new();
     for det in &nominal.detectors {
-        let (w, _h, pixels) = read_image(dir, &format!("{}-{}", exposure.id, det.id))?;
+        let image = images.get(&format!("{}-{}", exposure.id, det.id))?;
         let source = nominal.source_of(det);
         let frame = det.frame();
         let preds: Vec<Prediction> = box_beads
@@ -228,8 +230,7 @@ pub fn reconstruct_run(
         let image = BeadImage::read(
             setup,
             det,
-            &pixels,
-            w as usize,
+            &image,
             mean_radius_px(&preds),
             implant_in(setup, metal, &exposure.id, &frame, source),
             methods.bead_centre,
@@ -300,7 +301,7 @@ pub fn reconstruct_run(
                         metal,
                         centre: methods.bead_centre,
                     },
-                    dir,
+                    &images,
                     &exposure.id,
                     &beamlines,
                     beads,
@@ -316,7 +317,7 @@ pub fn reconstruct_run(
                 Some(model) => find_model_by_outline(
                     setup,
                     metal,
-                    dir,
+                    &images,
                     &exposure.id,
                     &beamlines,
                     model,
@@ -552,30 +553,35 @@ impl BeadImage {
     fn read(
         setup: &Setup,
         det: &DetectorState,
-        pixels: &[u16],
-        width: usize,
+        image: &RunImage,
         radius_px: f64,
         implant: Option<Implant>,
         centre: Option<Centre>,
     ) -> BeadImage {
         let imaging = &setup.scenario.imaging;
+        let width = image.width;
         if !imaging.is_attenuation() {
             return BeadImage {
-                blobs: bead_blobs(pixels, width, det.i_max(), radius_px),
+                blobs: bead_blobs(&image.pixels, width, det.i_max(), radius_px),
                 metal: Vec::new(),
                 width,
             };
         }
-        let img = density(pixels, width, Reading::of(imaging, det.i_max()));
+        let reading = Reading::of(imaging, det.i_max());
+        let img = image.density(reading);
         let bead_area = bead_area_px(radius_px);
         let min_area = (METAL_BEAD_AREAS * bead_area).max(50.0) as usize;
         let metal = match implant {
-            Some(i) => implant_metal_mask(&img, min_area, i.expected_area_px),
-            None => metal_mask(&img, min_area),
+            Some(i) => implant_metal_mask_with(
+                img,
+                min_area,
+                image.dense_shadow(reading, i.expected_area_px).as_deref(),
+            ),
+            None => metal_mask(img, min_area),
         };
         BeadImage {
             blobs: find_beads_by(
-                &img,
+                img,
                 radius_px,
                 &metal,
                 centre.unwrap_or_else(|| bead_centre_method(&setup.scenario)),
@@ -727,7 +733,7 @@ fn mean_radius_px(preds: &[Prediction]) -> f64 {
 /// it is found with them.
 fn find_model(
     reading: BeadReading,
-    dir: &Path,
+    run_images: &RunImages,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
     beads: &[TableBead],
@@ -738,7 +744,7 @@ fn find_model(
     let mut clear_views = Vec::new();
     let mut images = Vec::new();
     for (c, det) in beamlines.values() {
-        let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
+        let image = run_images.get(&format!("{exposure}-{}", det.id))?;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         // A bead's expected blob area, from the calibrated magnification at the model's nominal
         // position (the box may sit far from the model, as under a uniplanar table).
@@ -750,8 +756,7 @@ fn find_model(
         let image = BeadImage::read(
             reading.setup,
             det,
-            &px,
-            w as usize,
+            &image,
             radius_px,
             implant_in(
                 reading.setup,
@@ -944,7 +949,7 @@ fn phantom_material<'s>(setup: &'s Setup, id: &str) -> Option<&'s str> {
 fn find_model_by_outline(
     setup: &Setup,
     metal: &MetalMeshes,
-    dir: &Path,
+    images: &RunImages,
     exposure: &str,
     beamlines: &BTreeMap<String, (Calibrated, &DetectorState)>,
     model: &OutlineModel,
@@ -954,17 +959,18 @@ fn find_model_by_outline(
     let mut outlines = Vec::new();
     let mut graded_images = Vec::new();
     for (c, det) in beamlines.values() {
-        let (w, _, px) = read_image(dir, &format!("{exposure}-{}", det.id))?;
+        let image = images.get(&format!("{exposure}-{}", det.id))?;
         let imaging = &setup.scenario.imaging;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let found = if let Some((windows, sigma_px)) = attenuation_windows(setup, c, det, nominal) {
             let expected_area_px = implant_in(setup, metal, exposure, &frame, c.beamline.source_mm)
                 .and_then(|i| i.expected_area_px);
-            let img = density(&px, w as usize, Reading::of(imaging, det.i_max()));
-            graded_outline(&img, windows, expected_area_px)
-                .map(|o| (o, Some((img, windows, sigma_px))))
+            let reading = Reading::of(imaging, det.i_max());
+            (image.dense_shadow(reading, expected_area_px))
+                .and_then(|shadow| graded_outline_of(image.density(reading), windows, &shadow))
+                .map(|o| (o, Some((Arc::clone(&image), reading, windows, sigma_px))))
         } else {
-            outline(&px, w as usize, det.i_max()).map(|o| (o, None))
+            outline(&image.pixels, image.width, det.i_max()).map(|o| (o, None))
         };
         if let Some((o, graded)) = found {
             outlines.push((frame, c.beamline.source_mm, o));
@@ -982,7 +988,9 @@ fn find_model_by_outline(
     // Graded images: every start's fit is refined again on edge points measured along its
     // outline's normals (`edge::edge_points_along_outline`), independent of the segmentation.
     let remeasure = |k: usize, _: &Pose, segments: &[OutlineSegment]| match &graded_images[k] {
-        Some((img, windows, _)) => edge_points_along_outline(img, segments, *windows, None),
+        Some((image, reading, windows, _)) => {
+            edge_points_along_outline(image.density(*reading), segments, *windows, None)
+        }
         None => views[k].outline.edge_points.clone(),
     };
     let graded = graded_images.iter().all(Option::is_some);
@@ -998,7 +1006,8 @@ fn find_model_by_outline(
     let metals: Option<Vec<MetalTransmission>> = match (&setup.physics, graded) {
         (Some(physics), true) => (graded_images.iter().zip(&views))
             .map(|(g, view)| {
-                let (img, _, _) = g.as_ref()?;
+                let (image, reading, _, _) = g.as_ref()?;
+                let img = image.density(*reading);
                 let segments = model.outline(&fit.pose, view.source_mm, &view.frame);
                 MetalTransmission::of_material(
                     physics,
@@ -1015,9 +1024,10 @@ fn find_model_by_outline(
     };
     if let Some(metals) = &metals {
         let corrected = |k: usize, pose: &Pose, segments: &[OutlineSegment]| {
-            let Some((img, windows, sigma_px)) = &graded_images[k] else {
+            let Some((image, reading, windows, sigma_px)) = &graded_images[k] else {
                 return Vec::new();
             };
+            let img = image.density(*reading);
             let (view, edge) = (
                 &views[k],
                 EdgeModel {
