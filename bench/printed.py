@@ -31,6 +31,10 @@ load average at the start and at the end.
     bench/printed.py protocols [--rounds N] [--baseline BIN]   # the binary, realistic and
                                             #   blurred protocols on 10-run shards, alternated with
                                             #   an older build -> protocols-speed.md
+    bench/printed.py reconstruct-study [--rounds N] [--baseline BIN [--baseline-scenario FILE]]
+                                            #   `rsasim reconstruct` on the 4-patient attenuation
+                                            #   study, alternated with an older build on its own
+                                            #   output -> reconstruct-study-speed.md
     bench/printed.py protocol [--rounds N]  # the whole binary protocol: wall, CPU, peak RSS, size
                                             #   -> protocol-full.md
     bench/printed.py shards [--repeats N]   # bench/shards.sh: one run against 2 shards + merge
@@ -408,6 +412,65 @@ def cmd_protocols(args):
     write(args, "protocols-speed.md", command, "\n".join(rows), binary, load_start=start, note=note)
 
 
+# The realistic study `reconstruct` is timed on (issue 32: at least 3× faster than 0.6.0).
+STUDY = "scenarios/tka_migration_attenuation.toml"
+
+
+def timed_reconstruct(binary, out):
+    """Wall, CPU (user + system) seconds and peak RSS (kB) of `rsasim reconstruct OUT`, its earlier
+    results removed first."""
+    for f in out.glob("runs/*/measured-rsasim-*.json"):
+        f.unlink()
+    with tempfile.NamedTemporaryFile("r") as t:
+        run(["/usr/bin/time", "-o", t.name, "-f", "%e %U %S %M", str(binary), "reconstruct", str(out)])
+        wall, user, system, rss = t.read().split()[-4:]
+    return float(wall), float(user) + float(system), int(rss)
+
+
+def cmd_reconstruct_study(args):
+    binary = stamp.release_binary()
+    baseline = pathlib.Path(args.baseline).resolve() if args.baseline else None
+    # Under the system's temporary folder, which 0.6.0 accepts (it refuses /dev/shm); the images
+    # are read once before the rounds, so the page cache serves them as tmpfs would.
+    work = pathlib.Path(tempfile.mkdtemp(prefix="rsasim-reconstruct-study."))
+    try:
+        run([binary, STUDY, "--out", work / "a"])
+        if baseline:
+            scenario = pathlib.Path(args.baseline_scenario or STUDY).resolve()
+            run([baseline, scenario, "--out", work / "b"])
+        start = stamp.load()
+        mine, theirs = [], []
+        for r in range(args.rounds):
+            mine.append(timed_reconstruct(binary, work / "a"))
+            log(f"round {r + 1}: {mine[-1]}")
+            if baseline:
+                theirs.append(timed_reconstruct(baseline, work / "b"))
+                log(f"round {r + 1}, baseline: {theirs[-1]}")
+        runs = len(list((work / "a").glob("runs/*/truth.json")))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    med = lambda v: sorted(v)[len(v) // 2]  # noqa: E731 (median of an odd count)
+    rows = ["| build | wall | CPU | peak RSS |", "|---|---:|---:|---:|"]
+    rows.append(f"| this build | {med([m[0] for m in mine]):.1f} s | {med([m[1] for m in mine]):.1f} s | "
+                f"{max(m[2] for m in mine) / 1024:.0f} MB |")
+    if baseline:
+        rows.append(f"| baseline | {med([t[0] for t in theirs]):.1f} s | {med([t[1] for t in theirs]):.1f} s | "
+                    f"{max(t[2] for t in theirs) / 1024:.0f} MB |")
+        rows.append(f"| baseline ÷ this build (issue 32: ≥ 3) | "
+                    f"{med([b[0] / a[0] for a, b in zip(mine, theirs)]):.2f} | "
+                    f"{med([b[1] / a[1] for a, b in zip(mine, theirs)]):.2f} | |")
+    command = f"bench/printed.py reconstruct-study --rounds {args.rounds}" + (
+        f" --baseline {args.baseline}" if baseline else "") + (
+        f" --baseline-scenario {args.baseline_scenario}" if baseline and args.baseline_scenario else "")
+    note = (f"`rsasim reconstruct OUT` on `{STUDY}` ({runs} runs, 2 images each), medians over "
+            f"{args.rounds} rounds" + (", each followed by the baseline on its own output of the same study"
+                                       if baseline else "")
+            + "; ratios are taken round by round, then their median")
+    if baseline:
+        note += f"; baseline: `{run([str(baseline), '--version']).strip()}`"
+    write(args, "reconstruct-study-speed.md", command, "\n".join(rows), binary, load_start=start, note=note)
+
+
 def cmd_first_run(args):
     start = stamp.load()
     text = run(["bash", "bench/first_run.sh"])
@@ -528,6 +591,11 @@ def main():
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--baseline", default=None, help="an older rsasim binary, timed alternately")
     sub.add_parser("protocol").add_argument("--rounds", type=int, default=3)
+    p = sub.add_parser("reconstruct-study")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--baseline", default=None, help="an older rsasim binary, timed alternately")
+    p.add_argument("--baseline-scenario", default=None,
+                   help="the study's scenario as the baseline reads it (default: this one)")
     sub.add_parser("shards").add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     {
@@ -536,7 +604,7 @@ def main():
         "detector-response": cmd_detector_response, "reconstruct-speed": cmd_reconstruct_speed,
         "fuzz": cmd_fuzz, "attenuation-speed": cmd_attenuation_speed, "first-run-cost": cmd_first_run,
         "protocols": cmd_protocols, "adaptive-crop": cmd_adaptive_crop, "protocol": cmd_protocol,
-        "shards": cmd_shards,
+        "shards": cmd_shards, "reconstruct-study": cmd_reconstruct_study,
     }[args.which](args)
 
 
