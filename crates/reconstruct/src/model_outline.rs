@@ -29,6 +29,8 @@ pub struct OutlineModel {
     pub(crate) offsets: Vec<f64>,
     /// Every undirected edge once: its two vertices and its two faces.
     pub(crate) edges: Vec<MeshEdge>,
+    /// `edges[k].faces`, packed: the scan for the contour generator reads only these.
+    edge_faces: Vec<[u32; 2]>,
     bvh: MeshBvh,
     /// Centre of the local bounding box, mm.
     pub centre_mm: DVec3,
@@ -107,10 +109,26 @@ impl OutlineModel {
             triangles: mesh.triangles.clone(),
             normals,
             offsets,
+            edge_faces: edges.iter().map(|e| e.faces).collect(),
             edges,
             bvh: MeshBvh::new(mesh),
             centre_mm: (lo + hi) / 2.0,
         })
+    }
+
+    /// Whether each face faces the point `source_local` (model frame): `normal · p > offset`.
+    pub(crate) fn facing(&self, source_local: DVec3) -> Vec<bool> {
+        (self.normals.iter().zip(&self.offsets))
+            .map(|(n, d)| n.dot(source_local) > *d)
+            .collect()
+    }
+
+    /// The contour generator for `facing` ([`OutlineModel::facing`]): the edges between a face
+    /// that faces the source and one that does not, in mesh order.
+    pub(crate) fn contour<'m>(&'m self, facing: &'m [bool]) -> impl Iterator<Item = &'m MeshEdge> {
+        (self.edge_faces.iter().zip(&self.edges))
+            .filter(|([f0, f1], _)| facing[*f0 as usize] != facing[*f1 as usize])
+            .map(|(_, e)| e)
     }
 
     /// The mesh's BVH (for rendering a predicted shadow).
@@ -141,21 +159,11 @@ impl OutlineModel {
     ) -> Vec<OutlineSegment> {
         let to_local: DMat3 = pose.rotation.transpose();
         let source_local = to_local * (source_mm - pose.position_mm);
-        let facing: Vec<bool> = self
-            .normals
-            .iter()
-            .zip(&self.triangles)
-            .map(|(n, t)| n.dot(source_local - self.vertices[t[0] as usize]) > 0.0)
-            .collect();
-        // The contour generator, projected: the edges between a face that faces the source
-        // and one that does not.
+        let facing = self.facing(source_local);
+        // The contour generator, projected.
         let mut contour = Vec::new();
         let mut all_projected = true;
-        for e in &self.edges {
-            let [f0, f1] = e.faces.map(|f| f as usize);
-            if facing[f0] == facing[f1] {
-                continue;
-            }
+        for e in self.contour(&facing) {
             let world = [e.a, e.b].map(|v| pose.to_world(self.vertices[v as usize]));
             match (
                 frame.project(source_mm, world[0]),

@@ -97,9 +97,7 @@ impl OutlineModel {
         frame: &DetectorFrame,
     ) -> Option<Vec<(u32, u32)>> {
         let source_local = pose.rotation.transpose() * (source_mm - pose.position_mm);
-        let facing: Vec<bool> = (self.normals.iter().zip(&self.offsets))
-            .map(|(n, d)| n.dot(source_local) > *d)
-            .collect();
+        let facing = self.facing(source_local);
         // Model frame → detector frame: p = M·v + m; the source in the detector frame.
         let to_detector = frame.pose.rotation.transpose();
         let (m, offset) = (
@@ -123,12 +121,8 @@ impl OutlineModel {
         // (row, x, ±1) for every crossing of a contour edge with a row of pixel centres: the
         // rows j whose centre y = j + ½ lies in [min y, max y) of the edge.
         let mut crossings: Vec<(u32, f64, i32)> = Vec::new();
-        for e in &self.edges {
-            let [f0, f1] = e.faces.map(|f| f as usize);
-            if facing[f0] == facing[f1] {
-                continue;
-            }
-            let (from, to) = if facing[f0] == e.forward {
+        for e in self.contour(&facing) {
+            let (from, to) = if facing[e.faces[0] as usize] == e.forward {
                 (e.a, e.b)
             } else {
                 (e.b, e.a)

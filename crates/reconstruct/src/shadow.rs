@@ -82,7 +82,6 @@ pub fn dense_shadow(img: &Density, expected_area_px: Option<f64>) -> Option<Shad
         return None;
     }
     let core = core_pixels(img, core_level)?;
-    let gradient = sobel_magnitude(img);
     let max_area = ((w * h) as f64 * MAX_AREA_FRACTION) as usize;
     let mut region = Region::new(w * h, &core);
     // (fits the expected area, steepness, level) of the best level so far, and (area misfit,
@@ -104,7 +103,7 @@ pub fn dense_shadow(img: &Density, expected_area_px: Option<f64>) -> Option<Shad
                 continue;
             }
         }
-        let steepness = region.boundary_mean(img, &gradient);
+        let steepness = region.boundary_mean(img);
         if best.is_none_or(|(b, _)| steepness > b) {
             best = Some((steepness, level));
         }
@@ -138,6 +137,13 @@ struct Region {
     /// Pixels beside the region that were below the level when they were reached (a pixel may
     /// be listed more than once); the next, lower level starts from them.
     border: Vec<usize>,
+    /// The region's boundary pixels (a 4-neighbour outside it) as of the last
+    /// [`Region::boundary_mean`], in the order they joined: a pixel whose 4-neighbours are all
+    /// inside stays so as the region grows, so only these and the pixels joined since can be
+    /// on the boundary.
+    boundary: Vec<usize>,
+    /// How many of `pixels` `boundary` has looked at.
+    looked: usize,
 }
 
 impl Region {
@@ -147,6 +153,8 @@ impl Region {
             inside: vec![false; n],
             pixels: Vec::new(),
             border: core.to_vec(),
+            boundary: Vec::new(),
+            looked: 0,
         }
     }
 
@@ -197,26 +205,35 @@ impl Region {
         true
     }
 
-    /// The mean of `gradient` over the region's boundary pixels: those with a 4-neighbour
-    /// outside it (or off the image).
-    fn boundary_mean(&self, img: &Density, gradient: &[f64]) -> f64 {
+    /// The mean Sobel gradient magnitude ([`sobel_at`]) over the region's boundary pixels:
+    /// those with a 4-neighbour outside it (or off the image), summed in the order they joined
+    /// the region. Only the last call's boundary and the pixels joined since are looked at
+    /// (see `boundary`), and the gradient is computed at those pixels only.
+    fn boundary_mean(&mut self, img: &Density) -> f64 {
         let (w, h) = (img.width, img.height);
-        let (mut sum, mut n) = (0.0, 0usize);
-        for &k in &self.pixels {
+        let inside = &self.inside;
+        let on_boundary = |k: usize| {
             let (i, j) = (k % w, k / w);
             let outside = |x: Option<usize>, y: Option<usize>| match (x, y) {
-                (Some(x), Some(y)) if x < w && y < h => !self.inside[y * w + x],
+                (Some(x), Some(y)) if x < w && y < h => !inside[y * w + x],
                 _ => true,
             };
-            if outside(i.checked_sub(1), Some(j))
+            outside(i.checked_sub(1), Some(j))
                 || outside(Some(i + 1), Some(j))
                 || outside(Some(i), j.checked_sub(1))
                 || outside(Some(i), Some(j + 1))
-            {
-                sum += gradient[k];
-                n += 1;
-            }
+        };
+        let joined = &self.pixels[self.looked..];
+        let boundary: Vec<usize> = (self.boundary.iter().chain(joined))
+            .copied()
+            .filter(|&k| on_boundary(k))
+            .collect();
+        self.looked = self.pixels.len();
+        let (mut sum, n) = (0.0, boundary.len());
+        for &k in &boundary {
+            sum += sobel_at(img, k);
         }
+        self.boundary = boundary;
         if n == 0 { 0.0 } else { sum / n as f64 }
     }
 
@@ -249,22 +266,17 @@ fn blob_of(mask: &[bool], width: usize) -> Blob {
     }
 }
 
-/// The Sobel gradient magnitude of the attenuation at every pixel, the image clamped at its
+/// The Sobel gradient magnitude of the attenuation at pixel `k`, the image clamped at its
 /// borders.
-fn sobel_magnitude(img: &Density) -> Vec<f64> {
+fn sobel_at(img: &Density, k: usize) -> f64 {
     let (w, h) = (img.width as i64, img.height as i64);
+    let (i, j) = (k as i64 % w, k as i64 / w);
     let at = |x: i64, y: i64| img.values[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
-    let mut out = Vec::with_capacity(img.values.len());
-    for j in 0..h {
-        for i in 0..w {
-            let gx = (at(i + 1, j - 1) + 2.0 * at(i + 1, j) + at(i + 1, j + 1))
-                - (at(i - 1, j - 1) + 2.0 * at(i - 1, j) + at(i - 1, j + 1));
-            let gy = (at(i - 1, j + 1) + 2.0 * at(i, j + 1) + at(i + 1, j + 1))
-                - (at(i - 1, j - 1) + 2.0 * at(i, j - 1) + at(i + 1, j - 1));
-            out.push((gx * gx + gy * gy).sqrt());
-        }
-    }
-    out
+    let gx = (at(i + 1, j - 1) + 2.0 * at(i + 1, j) + at(i + 1, j + 1))
+        - (at(i - 1, j - 1) + 2.0 * at(i - 1, j) + at(i - 1, j + 1));
+    let gy = (at(i - 1, j + 1) + 2.0 * at(i, j + 1) + at(i + 1, j + 1))
+        - (at(i - 1, j - 1) + 2.0 * at(i, j - 1) + at(i + 1, j - 1));
+    (gx * gx + gy * gy).sqrt()
 }
 
 #[cfg(test)]
