@@ -31,6 +31,7 @@ pub mod shadow;
 pub mod silhouette;
 pub mod split;
 pub mod study;
+pub mod winding;
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -5,12 +5,12 @@
 //! those edges lie inside the shadow (a fold, or an edge hidden behind another part of the
 //! model); an edge is kept when a ray passing just outside its projected midpoint, on the side
 //! away from its faces, misses the mesh, which is where the shadow's winding number
-//! (`super::model_shadow`) is zero. What is left are the segments of the outer outline, in
+//! (`super::winding`) is zero. What is left are the segments of the outer outline, in
 //! continuous pixel coordinates, with the 3-D points they come from so that a fit can move them.
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::model_shadow::Winding;
+use super::winding::Winding;
 use crate::geometry::{DetectorFrame, Pose};
 use crate::phantom::TriMesh;
 use crate::trace::MeshBvh;
@@ -174,7 +174,7 @@ impl OutlineModel {
             }
         }
         // Whether a ray misses the mesh: it does where the shadow does not cover its point on
-        // the detector, the winding number of the contour (`model_shadow`); by a ray through
+        // the detector, the winding number of the contour (`super::winding`); by a ray through
         // the BVH, in f64, when part of the contour does not project. (The f32 ray test used
         // before found a sliver of two crossings 4·10⁻⁷ apart on 2 of 35 000 probes of the
         // femoral component, where the f64 caster and the winding number find none.)
