@@ -78,7 +78,7 @@ impl OutlineModel {
                 j += 1.0;
             }
         }
-        crossings.sort_unstable_by(|a, b| (a.0, a.1).partial_cmp(&(b.0, b.1)).expect("finite"));
+        crossings.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
         // Along each row, the pixels whose centres x = i + ½ lie in [x_k, x_k+1) take the
         // winding number of the crossings up to k.
         let mut covered = Vec::new();

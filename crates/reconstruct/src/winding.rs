@@ -21,7 +21,9 @@ pub struct Winding {
 
 impl Winding {
     /// From the contour edges, each projected from its facing face's first vertex to its second.
-    pub fn new(edges: Vec<[DVec2; 2]>) -> Winding {
+    /// An edge with a coordinate that is not finite (a pose that is not) is left out.
+    pub fn new(mut edges: Vec<[DVec2; 2]>) -> Winding {
+        edges.retain(|[p, q]| p.is_finite() && q.is_finite());
         let (top, bottom) = (edges.iter().flatten())
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(t, b), p| {
                 (t.min(p.y), b.max(p.y))
@@ -35,7 +37,7 @@ impl Winding {
         for (k, [p, q]) in edges.iter().enumerate() {
             let first = ((p.y.min(q.y) - top) / BAND_PX).floor() as usize;
             let last = ((p.y.max(q.y) - top) / BAND_PX).floor() as usize;
-            for band in &mut bands[first..=last.min(count - 1)] {
+            for band in bands.iter_mut().take(last + 1).skip(first) {
                 band.push(k as u32);
             }
         }
@@ -67,5 +69,45 @@ impl Winding {
             }
         }
         winding != 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_square_covers_its_inside_and_an_edge_that_is_not_finite_is_left_out() {
+        // A 10 × 6 px square run counter-clockwise, and a second copy inside it run the same
+        // way (winding 2 there); by hand, a point is covered exactly when it lies inside.
+        let square = |x0: f64, y0: f64, x1: f64, y1: f64| {
+            let c = [
+                DVec2::new(x0, y0),
+                DVec2::new(x1, y0),
+                DVec2::new(x1, y1),
+                DVec2::new(x0, y1),
+            ];
+            (0..4).map(move |k| [c[k], c[(k + 1) % 4]])
+        };
+        let mut edges: Vec<[DVec2; 2]> = square(2.0, 3.0, 12.0, 9.0)
+            .chain(square(4.0, 4.0, 6.0, 5.0))
+            .collect();
+        edges.push([DVec2::new(f64::NAN, 1.0), DVec2::new(3.0, 40.0)]);
+        let w = Winding::new(edges);
+        for (p, inside) in [
+            (DVec2::new(7.0, 6.0), true),
+            (DVec2::new(5.0, 4.5), true),
+            (DVec2::new(11.9, 8.9), true),
+            (DVec2::new(1.9, 6.0), false),
+            (DVec2::new(7.0, 9.1), false),
+            (DVec2::new(7.0, 30.0), false),
+            (DVec2::new(f64::NAN, 6.0), false),
+        ] {
+            assert_eq!(w.covers(p), inside, "{p}");
+        }
+        assert!(!Winding::new(Vec::new()).covers(DVec2::new(0.0, 0.0)));
+        // Only edges that are not finite (a pose gone to NaN): nothing is covered, no panic.
+        let nan = DVec2::splat(f64::NAN);
+        assert!(!Winding::new(vec![[nan, nan]; 3]).covers(DVec2::new(0.0, 0.0)));
     }
 }
