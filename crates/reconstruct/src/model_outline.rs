@@ -45,6 +45,15 @@ pub(crate) struct MeshEdge {
     pub(crate) forward: bool,
 }
 
+impl MeshEdge {
+    /// Whether the face of this contour edge that faces the source (`facing`:
+    /// [`OutlineModel::facing`]) runs it from `a` to `b`. Projected in that order, the contour
+    /// edges all turn the same way about the shadow they bound (`super::model_shadow`).
+    pub(crate) fn runs_forward(&self, facing: &[bool]) -> bool {
+        facing[self.faces[0] as usize] == self.forward
+    }
+}
+
 /// One segment of the outer outline in one image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OutlineSegment {
@@ -182,7 +191,7 @@ impl OutlineModel {
             Winding::new(
                 (contour.iter())
                     .map(|(e, _, ua, ub)| {
-                        if facing[e.faces[0] as usize] == e.forward {
+                        if e.runs_forward(&facing) {
                             [*ua, *ub]
                         } else {
                             [*ub, *ua]

@@ -15,7 +15,7 @@
 //! decided otherwise than by `render_binary`'s tie rule; elsewhere the two agree (tested on
 //! the shipped femoral component).
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 
 use super::model_outline::OutlineModel;
 use crate::geometry::{DetectorFrame, Pose};
@@ -33,31 +33,13 @@ impl OutlineModel {
     ) -> Option<Vec<(u32, u32)>> {
         let source_local = pose.rotation.transpose() * (source_mm - pose.position_mm);
         let facing = self.facing(source_local);
-        // Model frame → detector frame: p = M·v + m; the source in the detector frame.
-        let to_detector = frame.pose.rotation.transpose();
-        let (m, offset) = (
-            to_detector * pose.rotation,
-            to_detector * (pose.position_mm - frame.pose.position_mm),
-        );
-        let s = frame.pose.to_local(source_mm);
+        let project = frame.projector(source_mm, pose);
         let [w, h] = frame.pixels;
-        let project = |v: DVec3| -> Option<DVec2> {
-            let p = m * v + offset;
-            let dz = s.z - p.z;
-            if !(s.z > 0.0 && dz > 0.0) {
-                return None;
-            }
-            let t = s.z / dz;
-            Some(DVec2::new(
-                (s.x + (p.x - s.x) * t) / frame.pixel_pitch_mm[0] + f64::from(w) / 2.0,
-                (s.y + (p.y - s.y) * t) / frame.pixel_pitch_mm[1] + f64::from(h) / 2.0,
-            ))
-        };
         // (row, x, ±1) for every crossing of a contour edge with a row of pixel centres: the
         // rows j whose centre y = j + ½ lies in [min y, max y) of the edge.
         let mut crossings: Vec<(u32, f64, i32)> = Vec::new();
         for e in self.contour(&facing) {
-            let (from, to) = if facing[e.faces[0] as usize] == e.forward {
+            let (from, to) = if e.runs_forward(&facing) {
                 (e.a, e.b)
             } else {
                 (e.b, e.a)

@@ -12,7 +12,7 @@ use super::beads::{Centre, find_beads_by, implant_metal_mask_with, metal_mask, t
 use super::calibrate::{Beamline, Refined, calibrate};
 use super::contour::outline;
 use super::correspond::{Match, Prediction, match_beads, match_near};
-use super::density::{Density, Reading};
+use super::density::Density;
 use super::detect::{Blob, bead_area_px, fits_one_bead};
 use super::edge::{EdgeWindows, edge_points_along_outline, graded_outline_of, nominal_blur_px};
 use super::edge_model::{EdgeModel, MetalTransmission};
@@ -195,10 +195,10 @@ pub fn reconstruct_run(
         })
         .collect();
 
-    let images = RunImages::new(dir);
+    let images = RunImages::new(dir, &setup.scenario.imaging);
     let mut beamlines: BTreeMap<String, (Calibrated, &DetectorState)> = BTreeMap::new();
     for det in &nominal.detectors {
-        let image = images.get(&format!("{}-{}", exposure.id, det.id))?;
+        let image = images.get(&exposure.id, det)?;
         let source = nominal.source_of(det);
         let frame = det.frame();
         let preds: Vec<Prediction> = box_beads
@@ -567,15 +567,14 @@ impl BeadImage {
                 width,
             };
         }
-        let reading = Reading::of(imaging, det.i_max());
-        let img = image.density(reading);
+        let img = image.density();
         let bead_area = bead_area_px(radius_px);
         let min_area = (METAL_BEAD_AREAS * bead_area).max(50.0) as usize;
         let metal = match implant {
             Some(i) => implant_metal_mask_with(
                 img,
                 min_area,
-                image.dense_shadow(reading, i.expected_area_px).as_deref(),
+                image.dense_shadow(i.expected_area_px).as_deref(),
             ),
             None => metal_mask(img, min_area),
         };
@@ -744,7 +743,7 @@ fn find_model(
     let mut clear_views = Vec::new();
     let mut images = Vec::new();
     for (c, det) in beamlines.values() {
-        let image = run_images.get(&format!("{exposure}-{}", det.id))?;
+        let image = run_images.get(exposure, det)?;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         // A bead's expected blob area, from the calibrated magnification at the model's nominal
         // position (the box may sit far from the model, as under a uniplanar table).
@@ -959,16 +958,14 @@ fn find_model_by_outline(
     let mut outlines = Vec::new();
     let mut graded_images = Vec::new();
     for (c, det) in beamlines.values() {
-        let image = images.get(&format!("{exposure}-{}", det.id))?;
-        let imaging = &setup.scenario.imaging;
+        let image = images.get(exposure, det)?;
         let frame = c.beamline.frame(det.pixels, det.pixel_pitch_mm);
         let found = if let Some((windows, sigma_px)) = attenuation_windows(setup, c, det, nominal) {
             let expected_area_px = implant_in(setup, metal, exposure, &frame, c.beamline.source_mm)
                 .and_then(|i| i.expected_area_px);
-            let reading = Reading::of(imaging, det.i_max());
-            (image.dense_shadow(reading, expected_area_px))
-                .and_then(|shadow| graded_outline_of(image.density(reading), windows, &shadow))
-                .map(|o| (o, Some((Arc::clone(&image), reading, windows, sigma_px))))
+            (image.dense_shadow(expected_area_px))
+                .and_then(|shadow| graded_outline_of(image.density(), windows, &shadow))
+                .map(|o| (o, Some((Arc::clone(&image), windows, sigma_px))))
         } else {
             outline(&image.pixels, image.width, det.i_max()).map(|o| (o, None))
         };
@@ -988,8 +985,8 @@ fn find_model_by_outline(
     // Graded images: every start's fit is refined again on edge points measured along its
     // outline's normals (`edge::edge_points_along_outline`), independent of the segmentation.
     let remeasure = |k: usize, _: &Pose, segments: &[OutlineSegment]| match &graded_images[k] {
-        Some((image, reading, windows, _)) => {
-            edge_points_along_outline(image.density(*reading), segments, *windows, None)
+        Some((image, windows, _)) => {
+            edge_points_along_outline(image.density(), segments, *windows, None)
         }
         None => views[k].outline.edge_points.clone(),
     };
@@ -1006,8 +1003,8 @@ fn find_model_by_outline(
     let metals: Option<Vec<MetalTransmission>> = match (&setup.physics, graded) {
         (Some(physics), true) => (graded_images.iter().zip(&views))
             .map(|(g, view)| {
-                let (image, reading, _, _) = g.as_ref()?;
-                let img = image.density(*reading);
+                let (image, _, _) = g.as_ref()?;
+                let img = image.density();
                 let segments = model.outline(&fit.pose, view.source_mm, &view.frame);
                 MetalTransmission::of_material(
                     physics,
@@ -1024,10 +1021,10 @@ fn find_model_by_outline(
     };
     if let Some(metals) = &metals {
         let corrected = |k: usize, pose: &Pose, segments: &[OutlineSegment]| {
-            let Some((image, reading, windows, sigma_px)) = &graded_images[k] else {
+            let Some((image, windows, sigma_px)) = &graded_images[k] else {
                 return Vec::new();
             };
-            let img = image.density(*reading);
+            let img = image.density();
             let (view, edge) = (
                 &views[k],
                 EdgeModel {

@@ -79,6 +79,28 @@ impl DetectorFrame {
         Some([self.pose.rotation * du, self.pose.rotation * dv])
     }
 
+    /// [`project`](Self::project) of points given in the local frame of `pose`, with the two
+    /// frames' transforms composed once: `projector(source, pose)(v)` is
+    /// `project(source, pose.to_world(v))` up to rounding. For projecting many vertices of one
+    /// posed mesh.
+    pub fn projector(&self, source: DVec3, pose: &Pose) -> impl Fn(DVec3) -> Option<DVec2> {
+        let to_detector = self.pose.rotation.transpose();
+        let (m, offset) = (
+            to_detector * pose.rotation,
+            to_detector * (pose.position_mm - self.pose.position_mm),
+        );
+        let s = self.pose.to_local(source);
+        let frame = *self;
+        move |v: DVec3| {
+            let p = m * v + offset;
+            let dz = s.z - p.z;
+            if !(s.z > 0.0 && dz > 0.0) {
+                return None;
+            }
+            Some(frame.local_to_pixel(s + (p - s) * (s.z / dz)))
+        }
+    }
+
     /// Width and height of the active area in mm.
     pub fn size_mm(&self) -> [f64; 2] {
         [
@@ -114,6 +136,28 @@ mod tests {
             DVec3::new(-0.75, -0.125, -500.0)
         );
         assert_eq!(d.pixel_centre_world(3, 1), DVec3::new(0.75, 0.125, -500.0));
+    }
+
+    #[test]
+    fn the_projector_of_a_pose_projects_as_project_does() {
+        let mut d = frame();
+        d.pose = Pose::from_position_euler_deg([3.0, -2.0, -480.0], [2.0, 91.0, -5.0]);
+        let source = d.pose.to_world(DVec3::new(10.0, -20.0, 1800.0));
+        let pose = Pose::from_position_euler_deg([5.0, 7.0, -30.0], [20.0, -35.0, 60.0]);
+        let projector = d.projector(source, &pose);
+        for k in 0..50 {
+            let f = f64::from(k);
+            let v = DVec3::new(f.sin() * 40.0, (1.7 * f).cos() * 30.0, f - 25.0);
+            let (a, b) = (
+                projector(v).unwrap(),
+                d.project(source, pose.to_world(v)).unwrap(),
+            );
+            assert!((a - b).length() < 1e-9, "{a} against {b}");
+        }
+        // A point at or behind the source's plane does not project, by either.
+        let behind = pose.to_local(source + (source - d.pose.position_mm));
+        assert_eq!(projector(behind), None);
+        assert_eq!(d.project(source, pose.to_world(behind)), None);
     }
 
     #[test]

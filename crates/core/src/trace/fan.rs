@@ -54,6 +54,21 @@ fn max_over_box(g: DVec3, o: DVec3, lo: DVec3, hi: DVec3) -> f64 {
 }
 
 impl MeshBvh {
+    /// The length (mm) inside the mesh of the segment `origin + t·direction`, 0 < t < 1: the
+    /// parity sum of its sorted f64 crossings ([`MeshBvh::line_crossings`]), one traversal.
+    fn chord_by_crossings(&self, origin: DVec3, direction: DVec3) -> f64 {
+        let ts: Vec<f64> = (self.line_crossings(origin, direction).into_iter())
+            .filter(|t| *t > 0.0 && *t < 1.0)
+            .collect();
+        let inside: f64 = (ts.chunks(2))
+            .map(|c| match c {
+                [a, b] => b - a,
+                _ => 0.0,
+            })
+            .sum();
+        inside * direction.length()
+    }
+
     /// The length (mm) inside the mesh of each segment from `origin` to `first + k·step`,
     /// k = 0..count, all in the mesh's local frame (module docs). Zeros when the segments do not
     /// span a plane (`step` zero or along `first − origin`).
@@ -72,18 +87,7 @@ impl MeshBvh {
             Faces::Inward => -1.0,
             Faces::All => {
                 for (k, chord) in chords.iter_mut().enumerate() {
-                    let d = direction(k);
-                    let ts = self.line_crossings(origin, d);
-                    let inside: f64 = (ts.iter().filter(|t| **t > 0.0 && **t < 1.0))
-                        .copied()
-                        .collect::<Vec<f64>>()
-                        .chunks(2)
-                        .map(|c| match c {
-                            [a, b] => b - a,
-                            _ => 0.0,
-                        })
-                        .sum();
-                    *chord = inside * d.length();
+                    *chord = self.chord_by_crossings(origin, direction(k));
                 }
                 return chords;
             }
@@ -171,8 +175,7 @@ mod tests {
     use super::*;
     use crate::phantom::TriMesh;
 
-    /// The chord of each segment by the per-segment reference: the parity sum of its sorted f64
-    /// crossings within the segment.
+    /// The chord of each segment by the per-segment reference: one traversal each.
     fn by_segment(
         bvh: &MeshBvh,
         origin: DVec3,
@@ -181,19 +184,7 @@ mod tests {
         count: usize,
     ) -> Vec<f64> {
         (0..count)
-            .map(|k| {
-                let d = first + step * k as f64 - origin;
-                let ts: Vec<f64> = (bvh.line_crossings(origin, d).into_iter())
-                    .filter(|t| *t > 0.0 && *t < 1.0)
-                    .collect();
-                ts.chunks(2)
-                    .map(|c| match c {
-                        [a, b] => b - a,
-                        _ => 0.0,
-                    })
-                    .sum::<f64>()
-                    * d.length()
-            })
+            .map(|k| bvh.chord_by_crossings(origin, first + step * k as f64 - origin))
             .collect()
     }
 
