@@ -13,7 +13,10 @@ beamlines:
 
 Every variant shares the base scenario's seed, so runs compare draw by draw. A variant named
 `NAME/PROFILE` reconstructs the images of variant NAME again with `--bead-centre PROFILE`: the
-same images, only the bead-centre model changed.
+same images, only the bead-centre model changed. `NAME/edge-on` and `NAME/skip` reconstruct them
+again with `--edge-on-plates fit` or `skip`: the DLT fits, or leaves out, the beads of the plates
+seen edge-on (by default it leaves them out where the plates are imaged, as here, except in the
+variant "all, plates not imaged", whose plates have no thickness).
 
 Usage: bench/bias.py [--runs N] [--bin PATH] [--variants a,b,...]
 Prints a Markdown table stamped with commit, machine and date.
@@ -23,6 +26,7 @@ import argparse
 import json
 import math
 import pathlib
+import re
 import subprocess
 import sys
 import tempfile
@@ -49,12 +53,19 @@ VARIANTS = {
             ["psf = { sigma_mm = 0.15 }", "scatter = { ratio = 0.2, sigma_mm = 40.0 }",
              "electronic_noise_dn = 2.0"]),
 }
+# "all" with the box's acrylic plates not imaged (no thickness: the beads float in the air), so
+# a plate seen edge-on is no dense band along its beads.
+VARIANTS["all, plates not imaged"] = VARIANTS["all"]
+BARE = {"all, plates not imaged"}
 
 
-# The rows of the table: the variants, and two of them measured again with Gaussian bead centres
-# (the reference program fits a sphere's profile to the beads of their sharp images).
-ROWS = ["sharp", "sharp/gaussian", "area", "spot", "spot+heel", "psf", "scatter", "scatter/gaussian",
-        "noise", "all"]
+# The rows of the table: the variants, two of them measured again with Gaussian bead centres
+# (the reference program fits a sphere's profile to the beads of their sharp images), three with
+# the edge-on plates' beads fitted in the DLT (left out by default where the plates are imaged),
+# and "all" with plates not imaged, its edge-on plates' beads left out and (by default) fitted.
+ROWS = ["sharp", "sharp/gaussian", "sharp/edge-on", "area", "spot", "spot+heel", "psf", "scatter",
+        "scatter/gaussian", "scatter/edge-on", "noise", "all", "all/edge-on",
+        "all, plates not imaged/skip", "all, plates not imaged"]
 
 
 # The shipped protocol of biplanar_realistic.toml, which scenario_text rewrites.
@@ -62,10 +73,16 @@ LEVELS = [2.0, 1.0, 0.5, 0.25, 0.125]
 RUNS_PER_LEVEL = 20
 
 
-def scenario_text(runs, imaging, detector, levels=(1.0,)):
+def scenario_text(runs, imaging, detector, levels=(1.0,), bare=False):
     """biplanar_realistic.toml with `runs` runs per level at the exposure `levels` and the
-    variant's lines added to [imaging] and [imaging.detector]."""
+    variant's lines added to [imaging] and [imaging.detector]; `bare`: its plates' thickness
+    removed (not imaged)."""
     text = (ROOT / "scenarios/biplanar_realistic.toml").read_text()
+    if bare:
+        plates = re.compile(r"^thickness_mm = 8\.0.*$", re.M)
+        if len(plates.findall(text)) != 4:
+            sys.exit("scenarios/biplanar_realistic.toml no longer has the four 8 mm plates bench/bias.py expects")
+        text = plates.sub("", text)
     old_levels = "exposure_levels = [%s]" % ", ".join(repr(x) for x in LEVELS)
     if old_levels not in text or f"runs_per_level = {RUNS_PER_LEVEL}" not in text:
         sys.exit("scenarios/biplanar_realistic.toml no longer has the protocol bench/bias.py expects")
@@ -138,21 +155,27 @@ def main():
     print("|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.variants.split(","):
-            variant, _, centre = name.partition("/")
-            if variant not in VARIANTS or centre not in ("", "gaussian", "sphere"):
-                sys.exit(f"unknown variant {name}: one of {', '.join(VARIANTS)}, optionally /gaussian or /sphere")
+            variant, _, how = name.partition("/")
+            if variant not in VARIANTS or how not in ("", "gaussian", "sphere", "edge-on", "skip"):
+                sys.exit(f"unknown variant {name}: one of {', '.join(VARIANTS)}, optionally /gaussian, /sphere, /edge-on or /skip")
             imaging, detector = VARIANTS[variant]
-            out = pathlib.Path(tmp) / variant
+            slug = re.sub(r"[^a-z0-9+]+", "-", variant)
+            out = pathlib.Path(tmp) / slug
             if not out.exists():
-                scen = pathlib.Path(tmp) / f"{variant}.toml"
-                scen.write_text(scenario_text(args.runs, imaging, detector))
+                scen = pathlib.Path(tmp) / f"{slug}.toml"
+                scen.write_text(scenario_text(args.runs, imaging, detector, bare=variant in BARE))
                 run([binary, str(scen), "--out", str(out), "--allow-dir", str(ROOT / "scenarios/models")])
-            measured = f"measured-rsasim-dlt-markers{'-' + centre if centre else ''}.json"
-            centre_args = ["--bead-centre", centre, "--measured", measured] if centre else []
-            run([binary, "reconstruct", str(out), *centre_args])
+            measured = f"measured-rsasim-dlt-markers{'-' + how if how else ''}.json"
+            how_args = (["--edge-on-plates", "fit"] if how == "edge-on"
+                        else ["--edge-on-plates", "skip"] if how == "skip"
+                        else ["--bead-centre", how] if how else [])
+            run([binary, "reconstruct", str(out), *how_args, *(["--measured", measured] if how else [])])
             depth, lateral, femur, matched = measure(out, measured)
             fmt = lambda v: "%.3f ± %.3f (n %d)" % (*mean_sd(v), len(v))
-            label = f"{variant}, {centre.capitalize() if centre == 'gaussian' else centre} bead centres" if centre else variant
+            label = (f"{variant}, edge-on plates fitted" if how == "edge-on"
+                     else f"{variant}, edge-on plates skipped" if how == "skip"
+                     else f"{variant}, {how.capitalize() if how == 'gaussian' else how} bead centres" if how
+                     else variant)
             print(f"| {label} | {fmt(depth)} | {fmt(lateral)} | {fmt(femur)} | {fmt(matched)} |", flush=True)
 
 

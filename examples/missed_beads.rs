@@ -8,8 +8,8 @@
 //! ```
 //!
 //! A missed bead is put in the first class that fits:
-//! - **overlap**: another bead's image within two bead-image diameters (their blobs touch or
-//!   merge);
+//! - **overlap**: another bead's image within two bead-image diameters, counted apart within
+//!   2.5 radii (the discs touch or overlap, and blur joins them) and from 2.5 to 4 radii;
 //! - **plate edge**: the edge of a plate with a thickness (its outline projected) within the
 //!   detector's window around the bead (radius + 4 px);
 //! - **border**: the window reaches off the image;
@@ -25,7 +25,8 @@
 //! truth pixel, the nearest other bead's distance, the candidate's signal-to-noise, response,
 //! ring background and tile noise (attenuation), and the test that rejects it.
 //!
-//! A found bead is **misplaced** when its centre is more than 0.25 px from the truth pixel.
+//! A found bead is **misplaced** when its centre is more than 0.25 px from the truth pixel; the
+//! table gives the root mean square of the found beads' centre errors too.
 //! Prints a Markdown table per exposure level, stamped with the output's program.
 
 use std::collections::BTreeMap;
@@ -46,9 +47,13 @@ struct Tally {
     beads: usize,
     found: usize,
     misplaced: usize,
-    overlap: usize,
+    /// Sum of the squared centre errors of the beads found, px².
+    squared_error_px2: f64,
+    /// Overlaps by the nearest other bead's distance: within 2.5 bead-image radii (the discs
+    /// touch or overlap, blurred), and 2.5 to 4 radii.
+    overlap: [usize; 2],
     /// Of the overlaps, beads on a plate the view sees within 45° of edge-on.
-    overlap_edge_on: usize,
+    overlap_edge_on: [usize; 2],
     plate_edge: usize,
     border: usize,
     /// The other misses, by the test that rejects them.
@@ -290,22 +295,26 @@ fn main() -> ExitCode {
                     .fold(f64::INFINITY, f64::min);
                 if best <= 1.0 {
                     tally.found += 1;
+                    tally.squared_error_px2 += best * best;
                     if best > 0.25 {
                         tally.misplaced += 1;
                     }
                     continue;
                 }
                 let window = radius + 4.0;
-                if all_beads
+                let neighbour_px = all_beads
                     .iter()
-                    .any(|&o| o != at && (o - at).length() < 4.0 * radius)
-                {
-                    tally.overlap += 1;
+                    .filter(|&&o| o != at)
+                    .map(|&o| (o - at).length())
+                    .fold(f64::INFINITY, f64::min);
+                if neighbour_px < 4.0 * radius {
+                    let near = usize::from(neighbour_px >= 2.5 * radius);
+                    tally.overlap[near] += 1;
                     let plate = m.id.split('-').next().unwrap_or("");
                     let edge_on = normals.iter().any(|(id, n)| {
                         id == plate && n.dot(frame.pose.rotation.z_axis).abs() < 0.7
                     });
-                    tally.overlap_edge_on += usize::from(edge_on);
+                    tally.overlap_edge_on[near] += usize::from(edge_on);
                 } else if outlines
                     .iter()
                     .flatten()
@@ -322,11 +331,6 @@ fn main() -> ExitCode {
                     let seen = probe(&img, radius, &metal, at, 1.5);
                     *tally.other.entry(Cause::of(seen.as_ref())).or_default() += 1;
                     if list {
-                        let neighbour_px = all_beads
-                            .iter()
-                            .filter(|&&o| o != at)
-                            .map(|&o| (o - at).length())
-                            .fold(f64::INFINITY, f64::min);
                         listed.push(list_row(
                             &dir.file_name().unwrap().to_string_lossy(),
                             &image.detector,
@@ -345,11 +349,11 @@ fn main() -> ExitCode {
     );
     let causes: Vec<&str> = Cause::ALL.iter().map(|c| c.name()).collect();
     println!(
-        "| level | box beads on the images | found | misplaced > 0.25 px | missed: overlap (on a plate seen within 45° of edge-on) | plate edge | border | other, rejected by: {} |",
+        "| level | box beads on the images | found | centre error of those found, RMS px | misplaced > 0.25 px | missed: overlap, nearest bead < 2.5 radii (on a plate seen within 45° of edge-on) | overlap, 2.5–4 radii (edge-on) | plate edge | border | other, rejected by: {} |",
         causes.join(" | ")
     );
     println!(
-        "|---|---:|---:|---:|---:|---:|---:|{}",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|{}",
         "---:|".repeat(causes.len())
     );
     for (level, t) in &by_level {
@@ -358,12 +362,15 @@ fn main() -> ExitCode {
             .map(|c| t.other.get(c).copied().unwrap_or(0).to_string())
             .collect();
         println!(
-            "| {level} | {} | {} | {} | {} ({}) | {} | {} | {} |",
+            "| {level} | {} | {} | {:.3} | {} | {} ({}) | {} ({}) | {} | {} | {} |",
             t.beads,
             t.found,
+            (t.squared_error_px2 / t.found.max(1) as f64).sqrt(),
             t.misplaced,
-            t.overlap,
-            t.overlap_edge_on,
+            t.overlap[0],
+            t.overlap_edge_on[0],
+            t.overlap[1],
+            t.overlap_edge_on[1],
             t.plate_edge,
             t.border,
             other.join(" | ")

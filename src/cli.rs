@@ -408,6 +408,14 @@ pub struct ReconstructArgs {
     /// images are measured by their pixels' covered fraction either way.
     #[arg(long, value_name = "PROFILE", default_value = "auto")]
     pub bead_centre: BeadCentre,
+    /// DLT calibration: whether the beads of plates seen within 45° of edge-on are fitted
+    /// (matched once a first calibration from the facing plates predicts them). auto: unless
+    /// the plate itself is imaged (attenuation mode, a plate with a thickness), whose dense band
+    /// along its beads shortens the measured source distance on blurred images (the book's
+    /// Biases chapter). fit, skip: always, never, for comparison (the results' `software` then
+    /// names it).
+    #[arg(long, value_name = "CHOICE", default_value = "auto")]
+    pub edge_on_plates: EdgeOnPlates,
 }
 
 /// Arguments of `rsasim export`.
@@ -725,6 +733,25 @@ impl From<BeadCentre> for Option<rsasim::reconstruct::beads::Centre> {
             BeadCentre::Auto => None,
             BeadCentre::Gaussian => Some(Centre::GaussianFit),
             BeadCentre::Sphere => Some(Centre::SphereFit),
+        }
+    }
+}
+
+/// `reconstruct --edge-on-plates`: whether a DLT fits the beads of plates seen edge-on
+/// ([`rsasim::reconstruct::EdgeOnPlates`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EdgeOnPlates {
+    Auto,
+    Fit,
+    Skip,
+}
+
+impl From<EdgeOnPlates> for rsasim::reconstruct::EdgeOnPlates {
+    fn from(c: EdgeOnPlates) -> Self {
+        match c {
+            EdgeOnPlates::Auto => Self::Auto,
+            EdgeOnPlates::Fit => Self::Fit,
+            EdgeOnPlates::Skip => Self::Skip,
         }
     }
 }

@@ -634,3 +634,78 @@ fn measure_detection_on_an_output() {
         }
     }
 }
+
+/// On blurred images, each acrylic plate seen edge-on images as a dense band along its beads,
+/// and their centres shorten the measured source distance (docs/src/results/biases.md,
+/// `bench/bias.py`). By default the DLT leaves those beads out where the plates are imaged; with
+/// `--edge-on-plates fit` it fits them. On the same images (two runs of the shipped blurred
+/// scenario, both beamlines), the default must put the sources nearer their true distance, use
+/// fewer beads, and say nothing in `software`; the fitted variant names itself.
+#[test]
+fn on_blurred_images_the_edge_on_plates_are_left_out_and_the_source_distance_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = common::root().join("scenarios/biplanar_realistic_blurred.toml");
+    let o = rsasim(
+        &[
+            scenario.to_str().unwrap(),
+            "--shard",
+            "0/50",
+            "--out",
+            tmp.path().to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = tmp.path().join("shard-00-of-50");
+    // (mean |depth error| mm, mean beads per view, software) of the results `name`.
+    let score = |name: &str| {
+        let (mut depth, mut beads, mut n) = (0.0, 0.0, 0.0);
+        let mut software = String::new();
+        for ((_, truth), m) in truths(&out).iter().zip(results(&out, name)) {
+            software = m.software.clone();
+            for s in &m.sources {
+                let t = truth.run.sources.iter().find(|t| t.id == s.id).unwrap();
+                let det = truth
+                    .run
+                    .detectors
+                    .iter()
+                    .find(|d| d.source == s.id)
+                    .unwrap();
+                let axis = (t.position_mm - det.position_mm).normalize();
+                depth += (glam::DVec3::from_array(s.position_mm) - t.position_mm)
+                    .dot(axis)
+                    .abs();
+                beads += s.quality.as_ref().unwrap().beads_used.unwrap() as f64;
+                n += 1.0;
+            }
+        }
+        (depth / n, beads / n, software)
+    };
+    let o = rsasim(&["reconstruct", out.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = rsasim(
+        &[
+            "reconstruct",
+            out.to_str().unwrap(),
+            "--edge-on-plates",
+            "fit",
+            "--measured",
+            "measured-fitted.json",
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (skipped_mm, skipped_beads, skipped_name) = score("measured-rsasim-dlt-markers.json");
+    let (fitted_mm, fitted_beads, fitted_name) = score("measured-fitted.json");
+    eprintln!(
+        "mean |source depth error|: {skipped_mm:.3} mm on {skipped_beads:.0} beads per view by \
+         default, {fitted_mm:.3} mm on {fitted_beads:.0} with the edge-on plates"
+    );
+    assert!(skipped_mm < 0.5 && skipped_mm < 0.5 * fitted_mm);
+    assert!(skipped_beads < fitted_beads);
+    assert!(!skipped_name.contains("edge-on"), "{skipped_name}");
+    assert!(
+        fitted_name.ends_with(", edge-on plates fitted)"),
+        "{fitted_name}"
+    );
+}

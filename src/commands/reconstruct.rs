@@ -19,6 +19,7 @@ pub fn execute(args: ReconstructArgs) -> Outcome {
         overwrite: args.overwrite,
         stability_threshold_mm: Some(args.stability_threshold_mm),
         bead_centre: args.bead_centre.into(),
+        edge_on_plates: args.edge_on_plates.into(),
     };
     reconstruct_any(&args.out, &options)
 }

@@ -12,6 +12,9 @@
 //!   attenuation of a polychromatic beam grows more slowly than the chord (beam hardening); the
 //!   quadratic term (0 for a monochromatic beam) takes that up.
 //!
+//! A bead beside another, whose image reaches into its window, is fitted together with it
+//! ([`gaussians_fit`]: Gaussians of one shared width).
+//!
 //! A model that does not match the profile moves its centre with the bead's place against the
 //! pixel grid (pixel locking): fitted to a sharp image, the Gaussian's centre follows the grid
 //! (the guide's table of bead-centre methods measures by how much), and a sphere fitted to the
@@ -21,7 +24,7 @@
 //! model from what the imaging chain is declared to be ([`super::beads::Centre`]).
 
 use glam::DVec2;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
 /// One pixel of a bead's window: its centre (pixel coordinates) and its excess attenuation over
 /// the background.
@@ -86,6 +89,127 @@ pub fn gaussian_fit(pts: &[Sample], start: DVec2, sigma_start_px: f64) -> Option
         .then_some(Fit { centre, ssr })
 }
 
+/// A bead and the neighbours whose images reach into its window, fitted together: circular
+/// Gaussians `Σ Aₖ·exp(−|p − mₖ|²/(2σ²))` of one shared width (the beads of one image have one
+/// diameter and one blur), by Levenberg–Marquardt from `beads` (each one's start centre and
+/// amplitude; the first is the bead measured) and `sigma_start_px`. Returns the first bead's
+/// centre and the window's residual; `None` when the fit fails, the first's amplitude is not
+/// positive or its centre moves more than [`MAX_SHIFT_PX`]. A neighbour's tail in the window
+/// is then modelled instead of pulling the centre towards it, as it pulls a lone Gaussian.
+pub fn gaussians_fit(pts: &[Sample], beads: &[(DVec2, f64)], sigma_start_px: f64) -> Option<Fit> {
+    let (first, _) = *beads.first()?;
+    let n = 1 + 3 * beads.len();
+    // Parameters: ln σ, then per bead its amplitude and centre u, v.
+    let mut q = Vec::with_capacity(n);
+    q.push(libm::log(sigma_start_px));
+    for &(m, a) in beads {
+        q.extend([a, m.x, m.y]);
+    }
+    // The model at `p` and, when `jac` is given, its gradient in the parameters.
+    let model = |q: &[f64], p: DVec2, mut jac: Option<&mut [f64]>| -> f64 {
+        let sigma = libm::exp(q[0]);
+        let s2 = sigma * sigma;
+        let mut total = 0.0;
+        let mut d_ln_sigma = 0.0;
+        for k in 0..beads.len() {
+            let [a, u, v] = [q[1 + 3 * k], q[2 + 3 * k], q[3 + 3 * k]];
+            let d = p - DVec2::new(u, v);
+            let r2 = d.length_squared();
+            let e = libm::exp(-r2 / (2.0 * s2));
+            total += a * e;
+            d_ln_sigma += a * e * r2 / s2;
+            if let Some(j) = jac.as_deref_mut() {
+                j[1 + 3 * k] = e;
+                j[2 + 3 * k] = a * e * d.x / s2;
+                j[3 + 3 * k] = a * e * d.y / s2;
+            }
+        }
+        if let Some(j) = jac {
+            j[0] = d_ln_sigma;
+        }
+        total
+    };
+    let cost = |q: &[f64]| -> f64 {
+        pts.iter()
+            .map(|&(p, v)| {
+                let r = v - model(q, p, None);
+                r * r
+            })
+            .sum()
+    };
+    let mut ssr = cost(&q);
+    let mut lambda = 1e-4;
+    let mut jac = vec![0.0; n];
+    let mut h = DMatrix::<f64>::zeros(n, n);
+    let mut g = DVector::<f64>::zeros(n);
+    for _ in 0..100 {
+        h.fill(0.0);
+        g.fill(0.0);
+        for &(p, v) in pts {
+            let r = v - model(&q, p, Some(&mut jac));
+            for a in 0..n {
+                g[a] += jac[a] * r;
+                for b in 0..=a {
+                    h[(a, b)] += jac[a] * jac[b];
+                }
+            }
+        }
+        for a in 0..n {
+            for b in 0..a {
+                h[(b, a)] = h[(a, b)];
+            }
+        }
+        let Some((next, c, step)) = marquardt_step(&h, &g, &q, ssr, &mut lambda, &cost) else {
+            break;
+        };
+        // The bead's centre is what is wanted: once it settles (a step below 10⁻⁵ px, far below
+        // the centre's noise), the neighbours' parameters need not.
+        let converged = ssr - c <= 1e-10 * ssr
+            || step.iter().all(|x| x.abs() < 1e-9)
+            || (step[2].abs() < 1e-5 && step[3].abs() < 1e-5);
+        q = next;
+        ssr = c;
+        if converged {
+            break;
+        }
+    }
+    let centre = DVec2::new(q[2], q[3]);
+    ((centre - first).length() <= MAX_SHIFT_PX && q[1] > 0.0 && ssr.is_finite() && q[0].is_finite())
+        .then_some(Fit { centre, ssr })
+}
+
+/// One Levenberg–Marquardt step from `q` (cost `ssr`) with Marquardt's scaling by the diagonal
+/// of the normal matrix `h`: the damping `lambda` grows tenfold until a step lowers `cost`, then
+/// shrinks tenfold for the next step. The new parameters, their cost and the step; `None` when
+/// no damping up to 10¹² lowers the cost.
+fn marquardt_step(
+    h: &DMatrix<f64>,
+    g: &DVector<f64>,
+    q: &[f64],
+    ssr: f64,
+    lambda: &mut f64,
+    cost: impl Fn(&[f64]) -> f64,
+) -> Option<(Vec<f64>, f64, DVector<f64>)> {
+    while *lambda < 1e12 {
+        let mut damped = h.clone();
+        for k in 0..q.len() {
+            damped[(k, k)] += *lambda * h[(k, k)].max(1e-12);
+        }
+        let Some(step) = damped.lu().solve(g) else {
+            *lambda *= 10.0;
+            continue;
+        };
+        let next: Vec<f64> = q.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+        let c = cost(&next);
+        if c < ssr {
+            *lambda = (*lambda / 10.0).max(1e-9);
+            return Some((next, c, step));
+        }
+        *lambda *= 10.0;
+    }
+    None
+}
+
 /// The sphere model `a₁·h + a₂·h²` at `p` for parameters `q = [a₁, a₂, u, v, R]`, with its
 /// gradient in the parameters (zero outside the disc).
 fn sphere(q: &[f64; 5], p: DVec2) -> (f64, [f64; 5]) {
@@ -136,33 +260,17 @@ fn sphere_from(pts: &[Sample], start: DVec2, radius_px: f64, peak: f64) -> Optio
             h += jac * jac.transpose();
             g += jac * (v - model);
         }
-        // Damped steps until one lowers the cost (Marquardt's scaling by the diagonal).
-        let mut improved = None;
-        while lambda < 1e12 {
-            let mut damped = h;
-            for k in 0..5 {
-                damped[(k, k)] += lambda * h[(k, k)].max(1e-12);
-            }
-            let Some(step) = damped.lu().solve(&g) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let next: [f64; 5] = std::array::from_fn(|k| q[k] + step[k]);
-            let c = if next[4] > 0.25 {
-                cost(&next)
-            } else {
-                f64::INFINITY
-            };
-            if c < ssr {
-                improved = Some((next, c, step));
-                lambda = (lambda / 10.0).max(1e-9);
-                break;
-            }
-            lambda *= 10.0;
-        }
-        let Some((next, c, step)) = improved else {
+        // A radius below a quarter pixel is no sphere.
+        let bounded = |q: &[f64]| {
+            let q: [f64; 5] = q.try_into().expect("5 parameters");
+            if q[4] > 0.25 { cost(&q) } else { f64::INFINITY }
+        };
+        let h = DMatrix::from_column_slice(5, 5, h.as_slice());
+        let g = DVector::from_column_slice(g.as_slice());
+        let Some((next, c, step)) = marquardt_step(&h, &g, &q, ssr, &mut lambda, &bounded) else {
             break;
         };
+        let next: [f64; 5] = next.try_into().expect("5 parameters");
         let converged = ssr - c <= 1e-12 * ssr || step.iter().all(|x| x.abs() < 1e-9);
         q = next;
         ssr = c;
@@ -278,6 +386,28 @@ mod tests {
             sphere > gaussian,
             "sphere {sphere} px, Gaussian {gaussian} px"
         );
+    }
+
+    #[test]
+    fn a_bead_fitted_with_its_neighbour_gets_its_centre_and_alone_it_leans() {
+        // The exact model: two Gaussians of σ 1.1 px, 5.5 px apart, amplitudes 1 and 0.7, seen
+        // in the first one's 11 × 11 window, which holds the near half of the second.
+        let (a, b) = (DVec2::new(20.3, 30.6), DVec2::new(25.4, 32.7));
+        let g = |p: DVec2, m: DVec2, amp: f64| amp * (-(p - m).length_squared() / 2.42).exp();
+        let pts: Vec<Sample> = (25..36)
+            .flat_map(|j| (15..26).map(move |i| DVec2::new(i as f64 + 0.5, j as f64 + 0.5)))
+            .map(|p| (p, g(p, a, 1.0) + g(p, b, 0.7)))
+            .collect();
+        let start = a + DVec2::new(0.2, -0.15);
+        let together = gaussians_fit(&pts, &[(start, 0.9), (DVec2::new(25.5, 32.5), 0.6)], 1.6)
+            .expect("a fit");
+        assert!((together.centre - a).length() < 1e-6, "{together:?}");
+        let alone = gaussian_fit(&pts, start, 1.6).expect("a fit");
+        assert!((alone.centre - a).length() > 0.005, "{alone:?}");
+        // Without the neighbour in the window the joint fit is the lone one.
+        let single: Vec<Sample> = pts.iter().map(|&(p, _)| (p, g(p, a, 1.0))).collect();
+        let one = gaussians_fit(&single, &[(start, 0.9)], 1.6).expect("a fit");
+        assert!((one.centre - a).length() < 1e-6, "{one:?}");
     }
 
     #[test]

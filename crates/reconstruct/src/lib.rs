@@ -64,6 +64,33 @@ impl Method {
     }
 }
 
+/// Whether a DLT calibration fits the beads of the plates seen within 45° of edge-on (matched
+/// once a first calibration from the facing plates predicts them). Such a plate of acrylic is
+/// imaged as a dense band along its beads' dense lines; on blurred attenuation images the
+/// planar background under each bead does not fit the band's edges, and the beads' centres
+/// shorten the measured source distance (docs/src/results/biases.md measures it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EdgeOnPlates {
+    /// Fit them unless the plate itself is imaged (attenuation mode, a plate with a thickness).
+    #[default]
+    Auto,
+    /// Always fit them.
+    Fit,
+    /// Never fit them.
+    Skip,
+}
+
+impl EdgeOnPlates {
+    /// Whether the beads of a plate seen edge-on are fitted, the plate being `imaged` or not.
+    pub fn fits(self, imaged: bool) -> bool {
+        match self {
+            EdgeOnPlates::Auto => !imaged,
+            EdgeOnPlates::Fit => true,
+            EdgeOnPlates::Skip => false,
+        }
+    }
+}
+
 /// How `reconstruct` finds a model's pose.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ModelMethod {
@@ -112,6 +139,8 @@ pub struct Options {
     /// The profile fitted to a bead in attenuation-mode images; `None`: chosen per set-up
     /// ([`pipeline::bead_centre_method`]).
     pub bead_centre: Option<beads::Centre>,
+    /// DLT: whether the beads of plates seen edge-on are fitted.
+    pub edge_on_plates: EdgeOnPlates,
 }
 
 /// A run's entity that could not be reconstructed.
@@ -240,7 +269,12 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
     }
     // A clinical study's design, read (and checked against the manifest) before any run is.
     let design = crate::output::study::read_study(out)?;
-    let software = pipeline::software(options.method, label, options.bead_centre);
+    let software = pipeline::software(
+        options.method,
+        label,
+        options.bead_centre,
+        options.edge_on_plates,
+    );
     // Each mesh model that will be fitted by its outline is prepared once for all runs.
     let mut outlines = BTreeMap::new();
     for (id, mesh) in &setup.meshes {
@@ -260,6 +294,7 @@ pub fn reconstruct(out: &Path, options: &Options) -> Result<Summary, Vec<Diagnos
         calibration: options.method,
         model: options.model_method,
         bead_centre: options.bead_centre,
+        edge_on_plates: options.edge_on_plates,
     };
     let results: Vec<(String, Result<pipeline::RunResult, String>)> = runs
         .par_iter()

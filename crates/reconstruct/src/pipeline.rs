@@ -27,7 +27,7 @@ use super::silhouette::{
     fit_silhouette, outline_agreement, refine_remeasured,
 };
 use super::split::bead_blobs;
-use super::{Method, ModelMethod};
+use super::{EdgeOnPlates, Method, ModelMethod};
 use crate::expand::{DetectorState, PhantomState};
 use crate::geometry::{DetectorFrame, Pose, rotation_rows, rotation_xyz_deg};
 use crate::output::exam::{Setup, TableBead};
@@ -60,6 +60,8 @@ pub struct Methods {
     /// The profile fitted to a bead in attenuation-mode images; `None`:
     /// [`bead_centre_method`].
     pub bead_centre: Option<Centre>,
+    /// DLT: whether the beads of plates seen within 45° of edge-on are fitted.
+    pub edge_on_plates: EdgeOnPlates,
 }
 
 /// What `software` of every results file rsasim writes starts with; a results file whose
@@ -68,16 +70,27 @@ pub const SOFTWARE_PREFIX: &str = crate::output::measured::REFERENCE_SOFTWARE_PR
 
 /// The software's name in the results file: `rsasim reconstruct <version> (<calibration>,
 /// <model>)`, e.g. `rsasim reconstruct 0.1.0 (dlt, markers)`; `model` is the model method's
-/// name, or `auto` when models use different methods (the file's `methods` says which).
-pub fn software(calibration: Method, model: &str, bead_centre: Option<Centre>) -> String {
+/// name, or `auto` when models use different methods (the file's `methods` says which). A
+/// bead-centre profile chosen by hand and the edge-on plates' beads in a DLT follow.
+pub fn software(
+    calibration: Method,
+    model: &str,
+    bead_centre: Option<Centre>,
+    edge_on_plates: EdgeOnPlates,
+) -> String {
     let centre = match bead_centre {
         None => "",
         Some(Centre::Centroid) => ", centroid bead centres",
         Some(Centre::GaussianFit) => ", Gaussian bead centres",
         Some(Centre::SphereFit) => ", sphere bead centres",
     };
+    let plates = match (calibration, edge_on_plates) {
+        (Method::Dlt, EdgeOnPlates::Fit) => ", edge-on plates fitted",
+        (Method::Dlt, EdgeOnPlates::Skip) => ", edge-on plates skipped",
+        _ => "",
+    };
     format!(
-        "{SOFTWARE_PREFIX}{} ({}, {model}{centre})",
+        "{SOFTWARE_PREFIX}{} ({}, {model}{centre}{plates})",
         env!("CARGO_PKG_VERSION"),
         calibration.name()
     )
@@ -96,11 +109,13 @@ pub struct RunResult {
     pub models_found: usize,
 }
 
-/// What the calibration knows of each plate of the box: its role and whether it faces the beamline.
+/// What the calibration knows of each plate of the box: its role, whether it faces the
+/// beamline, and whether its beads are fitted when it does not.
 #[derive(Debug, Clone, Copy)]
 struct PlateUse {
     role: Option<PlateRole>,
     facing: bool,
+    fitted_edge_on: bool,
 }
 
 /// Reconstructs one run folder. Entities that cannot be found (too few beads) are left out of
@@ -174,6 +189,15 @@ pub fn reconstruct_run(
         .iter()
         .map(|id| box_plates().find(|p| p.id == *id).map(|p| p.role))
         .collect();
+    // A plate is imaged when it has a thickness in an attenuation-mode image.
+    let plate_fitted_edge_on: Vec<bool> = plates
+        .iter()
+        .map(|id| {
+            let imaged = setup.scenario.imaging.is_attenuation()
+                && box_plates().any(|p| p.id == *id && p.thickness_mm.is_some());
+            methods.edge_on_plates.fits(imaged)
+        })
+        .collect();
     let plate_normals: Vec<Option<DVec3>> = plates
         .iter()
         .map(|id| {
@@ -221,9 +245,11 @@ pub fn reconstruct_run(
         let uses: Vec<PlateUse> = plate_normals
             .iter()
             .zip(&plate_roles)
-            .map(|(n, role)| PlateUse {
+            .zip(&plate_fitted_edge_on)
+            .map(|((n, role), fitted)| PlateUse {
                 role: *role,
                 facing: n.is_none_or(|n| n.dot(s_axis).abs() > 0.7),
+                fitted_edge_on: *fitted,
             })
             .collect();
         let fit = |matches: &[Match]| fit_beamline(method, matches, box_beads, &plates, &uses, det);
@@ -435,7 +461,8 @@ fn predict(
 /// One calibration of a beamline from matched box beads by `method`: the fit and the number of
 /// beads it used.
 ///
-/// DLT: every matched bead. Selvik: the beads of the fiducial plate that faces the beamline (the
+/// DLT: every matched bead of the plates that face the beamline, and of those seen edge-on
+/// whose beads are fitted ([`EdgeOnPlates`]). Selvik: the beads of the fiducial plate that faces the beamline (the
 /// one with the most matches, should several face it) and of every control plate that faces it;
 /// beads of plates seen edge-on are left out.
 fn fit_beamline(
@@ -449,6 +476,13 @@ fn fit_beamline(
     let (pixels, pitch) = (det.pixels, det.pixel_pitch_mm);
     match method {
         Method::Dlt => {
+            let fitted = |m: &&Match| {
+                plates
+                    .iter()
+                    .position(|p| *p == beads[m.index].plate)
+                    .is_none_or(|g| uses[g].facing || uses[g].fitted_edge_on)
+            };
+            let matches: Vec<&Match> = matches.iter().filter(fitted).collect();
             let points: Vec<DVec3> = matches.iter().map(|m| beads[m.index].position_mm).collect();
             let uvs: Vec<DVec2> = matches.iter().map(|m| m.uv).collect();
             let refined = calibrate(&points, &uvs, pixels, pitch)?;
@@ -1047,7 +1081,7 @@ fn find_model_by_outline(
     let agreement = outline_agreement(model, &views, &fit.pose);
     if agreement < MIN_OUTLINE_AGREEMENT {
         flags.push(format!(
-            "outline agrees with the segmented shadow on {:.0} % of its edge points (< {:.0} %)",
+            "outline agrees with the segmented shadow on {:.0} % of its edge points in a view (< {:.0} %)",
             100.0 * agreement,
             100.0 * MIN_OUTLINE_AGREEMENT
         ));

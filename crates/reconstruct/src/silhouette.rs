@@ -76,20 +76,25 @@ pub const GOOD_FIT_PX: f64 = 0.35;
 /// below this marks a fit that found only part of the model's outline.
 pub const MIN_OUTLINE_AGREEMENT: f64 = 0.75;
 
-/// The share of the views' segmented edge points ([`SilhouetteView::outline`], found without
-/// the model) that lie within [`LAST_RADIUS_PX`] of the model's projected outline at `pose`:
-/// a check of a fit that does not depend on the points it was refined on.
+/// The share of a view's segmented edge points ([`SilhouetteView::outline`], found without the
+/// model) that lie within [`LAST_RADIUS_PX`] of the model's projected outline at `pose`, in the
+/// view where it is least: a check of a fit that does not depend on the points it was refined
+/// on. The least view, not all views' points together: a fit that lost one view's outline
+/// (its pose a millimetre off across that view) can still pair most points of the other and
+/// of the view's near parts (run n0-r15 of the blurred scenario: 84 % of all points, 0.2 px
+/// mean distance, 0.9 mm off).
 pub fn outline_agreement(model: &OutlineModel, views: &[SilhouetteView], pose: &Pose) -> f64 {
-    let (mut points, mut near) = (0usize, 0usize);
-    for view in views {
-        let segments = model.outline(pose, view.source_mm, &view.frame);
-        let grid = SegmentGrid::new(&segments, 4.0);
-        points += view.outline.edge_points.len();
-        near += (view.outline.edge_points.iter())
-            .filter(|&&e| grid.nearest(e, LAST_RADIUS_PX).is_some())
-            .count();
-    }
-    near as f64 / points.max(1) as f64
+    views
+        .iter()
+        .map(|view| {
+            let segments = model.outline(pose, view.source_mm, &view.frame);
+            let grid = SegmentGrid::new(&segments, 4.0);
+            let near = (view.outline.edge_points.iter())
+                .filter(|&&e| grid.nearest(e, LAST_RADIUS_PX).is_some())
+                .count();
+            near as f64 / view.outline.edge_points.len().max(1) as f64
+        })
+        .fold(1.0, f64::min)
 }
 
 /// One calibrated view of the model: the beamline and the outline detected in its image.
