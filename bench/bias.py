@@ -16,7 +16,7 @@ Every variant shares the base scenario's seed, so runs compare draw by draw. A v
 same images, only the bead-centre model changed. `NAME/edge-on` and `NAME/skip` reconstruct them
 again with `--edge-on-plates fit` or `skip`: the DLT fits, or leaves out, the beads of the plates
 seen edge-on (by default it leaves them out where the plates are imaged, as here, except in the
-variant "all, plates not imaged", whose plates have no thickness).
+variant "bare", which is "all" with the plates given no thickness: "all, plates not imaged").
 
 Usage: bench/bias.py [--runs N] [--bin PATH] [--variants a,b,...]
 Prints a Markdown table stamped with commit, machine and date.
@@ -55,8 +55,10 @@ VARIANTS = {
 }
 # "all" with the box's acrylic plates not imaged (no thickness: the beads float in the air), so
 # a plate seen edge-on is no dense band along its beads.
-VARIANTS["all, plates not imaged"] = VARIANTS["all"]
-BARE = {"all, plates not imaged"}
+VARIANTS["bare"] = VARIANTS["all"]
+BARE = {"bare"}
+# What the table calls a variant, where it is not its name.
+LABELS = {"bare": "all, plates not imaged"}
 
 
 # The rows of the table: the variants, two of them measured again with Gaussian bead centres
@@ -65,7 +67,7 @@ BARE = {"all, plates not imaged"}
 # and "all" with plates not imaged, its edge-on plates' beads left out and (by default) fitted.
 ROWS = ["sharp", "sharp/gaussian", "sharp/edge-on", "area", "spot", "spot+heel", "psf", "scatter",
         "scatter/gaussian", "scatter/edge-on", "noise", "all", "all/edge-on",
-        "all, plates not imaged/skip", "all, plates not imaged"]
+        "bare/skip", "bare"]
 
 
 # The shipped protocol of biplanar_realistic.toml, which scenario_text rewrites.
@@ -172,10 +174,11 @@ def main():
             run([binary, "reconstruct", str(out), *how_args, *(["--measured", measured] if how else [])])
             depth, lateral, femur, matched = measure(out, measured)
             fmt = lambda v: "%.3f ± %.3f (n %d)" % (*mean_sd(v), len(v))
-            label = (f"{variant}, edge-on plates fitted" if how == "edge-on"
-                     else f"{variant}, edge-on plates skipped" if how == "skip"
-                     else f"{variant}, {how.capitalize() if how == 'gaussian' else how} bead centres" if how
-                     else variant)
+            shown = LABELS.get(variant, variant)
+            label = (f"{shown}, edge-on plates fitted" if how == "edge-on"
+                     else f"{shown}, edge-on plates skipped" if how == "skip"
+                     else f"{shown}, {how.capitalize() if how == 'gaussian' else how} bead centres" if how
+                     else shown)
             print(f"| {label} | {fmt(depth)} | {fmt(lateral)} | {fmt(femur)} | {fmt(matched)} |", flush=True)
 
 

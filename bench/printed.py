@@ -39,6 +39,9 @@ load average at the start and at the end.
                                             #   -> protocol-full.md
     bench/printed.py shards [--repeats N]   # bench/shards.sh: one run against 2 shards + merge
                                             #   -> shards-merge.md
+    bench/printed.py missed-beads [OUT]     # examples/missed_beads.rs on 10 runs of the blurred
+                                            #   protocol (shard 0/10, simulated when OUT is not
+                                            #   given) -> missed-beads.md
 
 Tests run from the release integration-test binary (`cargo test --release --locked --test
 integration`), so one build serves every test table; RSASIM_TEST_BIN names that executable to run
@@ -191,6 +194,29 @@ def cmd_adaptive(args):
     write(args, "adaptive-sampling.md", "bench/printed.py adaptive", "\n".join(rows), binary, load_start=start,
           note="from `cargo run --release --example adaptive_check -- scenarios/biplanar_realistic_blurred.toml` "
                "(run 0, full size); the differences are exact, the seconds depend on the load")
+
+
+def cmd_missed_beads(args):
+    binary = stamp.release_binary()
+    tmp = tempfile.mkdtemp(prefix="rsasim-missed.")
+    try:
+        if args.out:
+            out = pathlib.Path(args.out).resolve()
+        else:
+            run([binary, ROOT / "scenarios/biplanar_realistic_blurred.toml", "--shard", "0/10",
+                 "--out", pathlib.Path(tmp) / "blurred"])
+            out = pathlib.Path(tmp) / "blurred" / "shard-0-of-10"
+        text = run(["cargo", "run", "--release", "--locked", "--quiet", "--example", "missed_beads", "--", out])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    rows = [l for l in text.splitlines() if l.startswith("|")]
+    if len(rows) < 3:
+        sys.exit(f"no rows in missed_beads' output:\n{text[-3000:]}")
+    write(args, "missed-beads.md", f"bench/printed.py missed-beads{' ' + args.out if args.out else ''}",
+          "\n".join(rows), binary,
+          note="from `cargo run --release --example missed_beads -- OUT` on `scenarios/"
+               "biplanar_realistic_blurred.toml --shard 0/10` (10 runs, two per exposure level); "
+               "every box bead the truth puts on a calibration image, not over an implant")
 
 
 def simulate_biplanar(binary, tmp):
@@ -597,6 +623,7 @@ def main():
     p.add_argument("--baseline-scenario", default=None,
                    help="the study's scenario as the baseline reads it (default: this one)")
     sub.add_parser("shards").add_argument("--repeats", type=int, default=3)
+    sub.add_parser("missed-beads").add_argument("out", nargs="?")
     args = ap.parse_args()
     {
         "detection": cmd_detection, "bead-centres": cmd_bead_centres, "sampling": cmd_sampling,
@@ -605,6 +632,7 @@ def main():
         "fuzz": cmd_fuzz, "attenuation-speed": cmd_attenuation_speed, "first-run-cost": cmd_first_run,
         "protocols": cmd_protocols, "adaptive-crop": cmd_adaptive_crop, "protocol": cmd_protocol,
         "shards": cmd_shards, "reconstruct-study": cmd_reconstruct_study,
+        "missed-beads": cmd_missed_beads,
     }[args.which](args)
 
 

@@ -1081,7 +1081,7 @@ fn find_model_by_outline(
     let agreement = outline_agreement(model, &views, &fit.pose);
     if agreement < MIN_OUTLINE_AGREEMENT {
         flags.push(format!(
-            "outline agrees with the segmented shadow on {:.0} % of its edge points in a view (< {:.0} %)",
+            "outline agrees with the segmented shadow on {:.0} % of its edge points (< {:.0} %)",
             100.0 * agreement,
             100.0 * MIN_OUTLINE_AGREEMENT
         ));
