@@ -504,12 +504,18 @@ fn the_blurred_run_whose_outline_fit_fell_into_a_wrong_minimum_is_fitted() {
 /// weight of 1 px. With `silhouette::HUBER_PX` = 0.25 px at the last search radius both runs land
 /// within issue 32's 0.1 mm and 0.1°. Run n0-r15 (×2; shard 15) is the other side: at a fixed
 /// 0.25 px from the first iteration, its first start lost the lateral view and was kept 0.9 mm
-/// off; the threshold shrinks with the search radius, so it does not.
+/// off; the threshold shrinks with the search radius, so it does not. With the calibration that
+/// leaves the edge-on plates out, n0-r15 fell into a start that lost one view's outline, and
+/// n2-r08 (×0.5; shard 48) and n3-r10 (×0.25; shard 70) into wrong minima that agreed with the
+/// segmented outline more than the right fit did: the search now ends only at a fit agreeing in
+/// every view, and ranks the fits it tried by closeness first.
 #[test]
 fn blurred_runs_held_off_by_their_own_edge_points_are_fitted() {
     blurred_run_within_issue_32_bounds(43, "n2-r03");
     blurred_run_within_issue_32_bounds(17, "n0-r17");
     blurred_run_within_issue_32_bounds(15, "n0-r15");
+    blurred_run_within_issue_32_bounds(48, "n2-r08");
+    blurred_run_within_issue_32_bounds(70, "n3-r10");
 }
 
 /// Simulates run `id` (shard `shard` of 100) of the shipped blurred scenario alone, fits the femur
