@@ -83,10 +83,7 @@ pub const MIN_OUTLINE_AGREEMENT: f64 = 0.75;
 /// the model) that lie within [`LAST_RADIUS_PX`] of the model's projected outline at `pose`:
 /// a check of a fit that does not depend on the points it was refined on.
 pub fn outline_agreement(model: &OutlineModel, views: &[SilhouetteView], pose: &Pose) -> f64 {
-    let shares = view_agreements(model, views, pose);
-    let near: usize = shares.iter().map(|s| s.0).sum();
-    let points: usize = shares.iter().map(|s| s.1).sum();
-    near as f64 / points.max(1) as f64
+    share_over_views(&view_agreements(model, views, pose))
 }
 
 /// [`outline_agreement`] in the view where it is least. A fit that lost one view's outline (its
@@ -96,7 +93,19 @@ pub fn outline_agreement(model: &OutlineModel, views: &[SilhouetteView], pose: &
 /// one view whose segmented outline holds edges of the bone (runs n2-r08 and n3-r10: 59 % and
 /// 69 % in one view at 0.07 to 0.09 px, beside wrong minima agreeing more at 0.4 px).
 pub fn least_view_agreement(model: &OutlineModel, views: &[SilhouetteView], pose: &Pose) -> f64 {
-    view_agreements(model, views, pose)
+    least_share(&view_agreements(model, views, pose))
+}
+
+/// The share of all views' points near the outline, from [`view_agreements`]' counts.
+fn share_over_views(counts: &[(usize, usize)]) -> f64 {
+    let near: usize = counts.iter().map(|c| c.0).sum();
+    let points: usize = counts.iter().map(|c| c.1).sum();
+    near as f64 / points.max(1) as f64
+}
+
+/// The least view's share of its points near the outline, from [`view_agreements`]' counts.
+fn least_share(counts: &[(usize, usize)]) -> f64 {
+    counts
         .iter()
         .map(|&(near, points)| near as f64 / points.max(1) as f64)
         .fold(1.0, f64::min)
@@ -184,9 +193,16 @@ pub fn fit_silhouette(
             Err(e) if best.is_none() => return Err(e),
             Err(_) => continue,
         };
-        let close = fit.mean_distance_px <= GOOD_FIT_PX;
-        let good = close && outline_agreement(model, views, &fit.pose) >= MIN_OUTLINE_AGREEMENT;
-        let done = close && least_view_agreement(model, views, &fit.pose) >= MIN_OUTLINE_AGREEMENT;
+        // Both checks from one projection of the outline per view, and only for a close fit.
+        let (good, done) = if fit.mean_distance_px <= GOOD_FIT_PX {
+            let counts = view_agreements(model, views, &fit.pose);
+            (
+                share_over_views(&counts) >= MIN_OUTLINE_AGREEMENT,
+                least_share(&counts) >= MIN_OUTLINE_AGREEMENT,
+            )
+        } else {
+            (false, false)
+        };
         if best.as_ref().is_none_or(|(b_good, b)| {
             (good, -fit.mean_distance_px) > (*b_good, -b.mean_distance_px)
         }) {
