@@ -476,9 +476,10 @@ def cmd_summary(args):
         tm.append({"what": label, "ours_ms": ours, "gvxr_ms": g})
         lines.append(f"| {label} | {ours:.1f} ms | {'—' if g is None else f'{g:.1f} ms'} | {ratio} |")
     lines.append(
-        f"- rsasim: median of {a['repeats']} on {next(iter(sc.values()))['threads']} threads, noise always included "
-        f"(quantum noise is part of `attenuation::render`); rows without noise: rsasim at the scene's 1e12 photons per pixel, "
-        f"rows with noise: both at 1000 photons per pixel; gVXR: {gv['peer'] + ', ' + gv['renderer'] if gv else 'not measured'}."
+        f"- rsasim: median of {a['repeats']} on {next(iter(sc.values()))['threads']} threads; rows without noise: "
+        f"rsasim's expected image (the scene's `quantum_noise = false`) against gVXR's image without noise; "
+        f"rows with noise: both draw Poisson noise at 1000 photons per pixel; the focal-spot row: rsasim with noise at 10⁴ photons "
+        f"per pixel, gVXR without; gVXR: {gv['peer'] + ', ' + gv['renderer'] if gv else 'not measured'}."
     )
     res["timing"] = tm
     text = "\n".join(lines)

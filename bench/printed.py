@@ -349,9 +349,11 @@ def cmd_attenuation_speed(args):
     for t in summary["timing"]:
         g = t.get("gvxr_ms")
         ratio = f"{t['ours_ms'] / g:.3f}" if g else "—"
-        realistic = t["what"].startswith("femur + bone") and "focal spot" not in t["what"]
-        target = ATTENUATION_TARGET if realistic and g else ""
-        if realistic and g:
+        # Issue 32: every like-for-like row (both images with noise, or both without). The
+        # focal-spot row is not: gVXR's image has no noise there, rsasim's has.
+        like_for_like = g and "focal spot" not in t["what"]
+        target = ATTENUATION_TARGET if like_for_like else ""
+        if like_for_like:
             ratio = f"**{ratio}**"
         rows.append(f"| {t['what']} | {t['ours_ms']:.1f} ms | {'—' if g is None else f'{g:.0f} ms'} | {ratio} | {target} |")
     command = "bench/printed.py attenuation-speed" + (f" --venv {args.venv}" if args.venv else "")

@@ -33,7 +33,10 @@
 //! with and without the parts) and `NAME.spectrum.tsv` (energy_kev, photons per bin).
 //!
 //! Timings: one warm-up, then the median of REPEATS (default 5) calls of `attenuation::render`
-//! on all of rayon's threads; the BVHs and the parts are built outside the timing.
+//! on all of rayon's threads; the BVHs and the parts are built outside the timing. Each scene is
+//! timed as it is written (`render_ms`; the scenes compared with gVXR write the expected image,
+//! `quantum_noise = false`, as gVXR's image without noise) and at 1000 photons per pixel with
+//! quantum noise (`render_1000_photons_ms`, as gVXR's image with Poisson noise).
 
 #[path = "common/export.rs"]
 mod export;
@@ -124,7 +127,13 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         &exposure.id,
         &det.id,
     );
-    let render = |parts: &[Part], keep: bool, factor: f64| {
+    // The noisy rows draw quantum noise even where the scene writes the expected image
+    // (`quantum_noise = false`, the rows without noise, like gVXR's image without noise).
+    let noisy_setup = attenuation::Setup {
+        quantum_noise: true,
+        ..setup.clone()
+    };
+    let render_with = |setup: &attenuation::Setup, parts: &[Part], keep: bool, factor: f64| {
         let exposed = attenuation::Exposure {
             setup,
             parts,
@@ -146,38 +155,44 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         )
         .unwrap_or_else(|e| panic!("{rel}: {e}"))
     };
-    let time = |factor: f64| {
-        let first = render(&parts, false, factor);
+    let render = |parts: &[Part], keep: bool, factor: f64| render_with(setup, parts, keep, factor);
+    let time = |setup: &attenuation::Setup, factor: f64| {
+        let first = render_with(setup, &parts, false, factor);
         let mut times = Vec::with_capacity(repeats);
         for _ in 0..repeats {
             let t = Instant::now();
-            let image = render(&parts, false, factor);
+            let image = render_with(setup, &parts, false, factor);
             times.push(1e3 * t.elapsed().as_secs_f64());
             assert_eq!(image.pixels, first.pixels, "render is deterministic");
         }
         times
     };
     let first = render(&parts, export, factor);
-    let times = time(factor);
+    let times = time(setup, factor);
     let ms = median_ms(times.clone());
     // The peer's noisy image has 1000 photons per pixel (gVXR `setMonoChromatic(…, 1000)` or
-    // bins summing to 1000, `setmAs(1)`): the same count here, for the rows "with noise". A
-    // scenario with far more photons (1e12, to compare transmissions) sends most Poisson draws
-    // through the sampler's exact slow path, which a real exposure never does.
+    // bins summing to 1000, `setmAs(1)`): the same count here, with quantum noise, for the rows
+    // "with noise". The scenes that compare transmissions write the expected image
+    // (`quantum_noise = false`) at 1e12 photons, which only sets the scale.
     let reference_photons: f64 = setup
         .beam(&frame, source, 1.0)
         .photons_per_pixel
         .iter()
         .sum();
     let noisy_factor = 1000.0 / reference_photons;
-    let noisy_times = if reference_photons > 1e6 {
-        time(noisy_factor)
+    let noisy_times = if reference_photons > 1e6 || !setup.quantum_noise {
+        time(&noisy_setup, noisy_factor)
     } else {
         times.clone()
     };
     let noisy_ms = median_ms(noisy_times.clone());
     println!(
-        "rsasim {name}: attenuation::render {ms:.1} ms, at 1000 photons per pixel {noisy_ms:.1} ms (medians of {repeats}; {} threads), {} parts, {} bins",
+        "rsasim {name}: attenuation::render {ms:.1} ms ({}), at 1000 photons per pixel with quantum noise {noisy_ms:.1} ms (medians of {repeats}; {} threads), {} parts, {} bins",
+        if setup.quantum_noise {
+            "with quantum noise"
+        } else {
+            "expected image, no quantum noise"
+        },
         rayon::current_num_threads(),
         parts.len(),
         setup.energies_kev.len()
@@ -191,6 +206,7 @@ fn scene(root: &Path, dir: &Path, name: &str, rel: &str, repeats: usize, export:
         "bins": setup.energies_kev.len(),
         "render_ms": ms,
         "render_runs_ms": times,
+        "quantum_noise": setup.quantum_noise,
         "render_1000_photons_ms": noisy_ms,
         "render_1000_photons_runs_ms": noisy_times,
         "threads": rayon::current_num_threads(),

@@ -120,6 +120,52 @@ fn pixel_values_follow_beer_lambert_along_the_exact_chord() {
     assert!(f64::from(px[(32 * w + 32) as usize]) < 0.3 * open(32, 32));
 }
 
+/// `quantum_noise = false`: every pixel of the water cylinder's image is Beer–Lambert along
+/// the exact chord, by hand (inverse square, obliquity, the shipped μ), to the rounding of the
+/// stored value; the same scene with quantum noise differs from it by the noise.
+#[test]
+fn without_quantum_noise_every_pixel_is_beer_lambert_to_the_rounding() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = water_cylinder("").replace("gain = 1e-5\n", "gain = 1e-5\nquantum_noise = false\n");
+    assert!(text.contains("quantum_noise = false"));
+    let scenario = write(tmp.path(), "water.toml", &text);
+    let out = tmp.path().join("out");
+    let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, h, px) = read_tiff(&out.join("runs/n0-r00/x-det.tiff"));
+    let mu_per_mm = rsasim::material::by_name("water")
+        .unwrap()
+        .linear_attenuation_per_mm(60.0);
+    let mut worst = 0.0f64;
+    for j in 0..h {
+        for i in 0..w {
+            let (x, y) = (i as f64 + 0.5 - 32.0, j as f64 + 0.5 - 32.0);
+            let r = (x * x + y * y + 1200.0 * 1200.0).sqrt();
+            let expected = 1e4 * (1200.0 / r).powi(3) * (-mu_per_mm * chord_mm(i, j)).exp();
+            let v = f64::from(px[(j * w + i) as usize]);
+            worst = worst.max((v - expected).abs());
+        }
+    }
+    // Rounding to whole digital units, and the double arithmetic of the chord (≪ 10⁻⁶).
+    assert!(
+        worst <= 0.5 + 1e-6,
+        "worst |stored − Beer–Lambert| {worst} DN"
+    );
+    // With quantum noise (√(10⁹) ≈ 3·10⁴ counts, times the gain 10⁻⁵: ≈ 0.3 DN) the
+    // stored values differ from these in many pixels.
+    let noisy = tmp.path().join("noisy");
+    let scenario = write(tmp.path(), "noisy.toml", &water_cylinder(""));
+    let o = rsasim(&[&scenario, "--out", noisy.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (_, _, noisy_px) = read_tiff(&noisy.join("runs/n0-r00/x-det.tiff"));
+    let differ = px.iter().zip(&noisy_px).filter(|(a, b)| a != b).count();
+    assert!(
+        differ > px.len() / 10,
+        "{differ} of {} pixels differ",
+        px.len()
+    );
+}
+
 #[test]
 fn path_length_layers_hold_the_exact_chord_and_are_truth() {
     let tmp = tempfile::tempdir().unwrap();

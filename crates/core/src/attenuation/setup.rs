@@ -106,6 +106,9 @@ pub struct Setup {
     pub offset: f64,
     /// Raw or radiograph, with its range.
     pub polarity: Polarity,
+    /// Whether each pixel's count is drawn (Poisson) or is its expected value
+    /// (`quantum_noise = false`).
+    pub quantum_noise: bool,
     /// Spectrum summary for reports and file headers: mean energy after filtration, keV.
     pub mean_energy_kev: f64,
     /// Material names by index (for messages and EXR layers).
@@ -210,6 +213,7 @@ impl Setup {
                     range: d.radiograph_range.unwrap_or(DEFAULT_RADIOGRAPH_RANGE),
                 },
             },
+            quantum_noise: d.quantum_noise.unwrap_or(true),
             names,
             blur,
             unsharp,
@@ -277,6 +281,7 @@ impl Setup {
             offset: self.offset,
             i_max,
             polarity: self.polarity.clone(),
+            quantum_noise: self.quantum_noise,
         }
     }
 

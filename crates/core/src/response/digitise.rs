@@ -13,6 +13,8 @@ use crate::noise::Poisson;
 #[derive(Debug, Clone)]
 pub(crate) struct Digitiser {
     integrating: bool,
+    /// `false`: the expected image (no draw; [`DetectorModel::quantum_noise`]).
+    quantum_noise: bool,
     offset: f64,
     gain: f64,
     i_max: u16,
@@ -31,6 +33,7 @@ impl Digitiser {
         };
         Digitiser {
             integrating: det.response == Response::EnergyIntegrating,
+            quantum_noise: det.quantum_noise,
             offset: det.offset,
             gain: det.gain,
             i_max: det.i_max,
@@ -47,7 +50,8 @@ impl Digitiser {
     /// only when integrating), left to right: per pixel `n ~ Poisson(q)` drawn from `rng` (mean
     /// clamped to `[0, LAMBDA_MAX]`, NaN as 0; [`Poisson::fill_with_means`], the draws of one
     /// [`Poisson::sample_with_mean`] per pixel), then `S = n` (photon counting) or `n · e/q`
-    /// (energy integrating, 0 when `q ≤ 0`).
+    /// (energy integrating, 0 when `q ≤ 0`). Without quantum noise `n` is the clamped mean
+    /// itself and nothing is drawn.
     ///
     /// # Panics
     /// When the three slices differ in length.
@@ -89,7 +93,11 @@ impl Digitiser {
             for (l, &q) in lambda.iter_mut().zip(q) {
                 *l = if q >= 0.0 { q.min(LAMBDA_MAX) } else { 0.0 };
             }
-            Poisson::fill_with_means(lambda, rng, s);
+            if self.quantum_noise {
+                Poisson::fill_with_means(lambda, rng, s);
+            } else {
+                s.copy_from_slice(lambda);
+            }
             if self.integrating {
                 for ((s, &q), &e) in s.iter_mut().zip(q).zip(e) {
                     *s = if q > 0.0 { *s * (e / q) } else { 0.0 };
@@ -384,6 +392,7 @@ mod tests {
         for integrating in [false, true] {
             let d = Digitiser {
                 integrating,
+                quantum_noise: true,
                 offset: 0.0,
                 gain: 1.0,
                 i_max: u16::MAX,
@@ -414,6 +423,37 @@ mod tests {
             let next = want_rng.next_u64();
             assert_eq!(ra.next_u64(), next, "same generator position");
             assert_eq!(rb.next_u64(), next, "same generator position, portable");
+        }
+    }
+
+    #[test]
+    fn without_quantum_noise_the_signal_is_the_mean_and_nothing_is_drawn() {
+        use rand_chacha::ChaCha8Rng;
+        use rand_core::SeedableRng;
+        let q = [0.0, -3.0, f64::NAN, 4.5, 1234.5, 2e15, f64::INFINITY];
+        let e = [0.0, 1.0, 2.0, 270.0, 74070.0, 1.2e17, 1.0];
+        // By hand: the mean clamped to [0, 10¹⁵] (negative and NaN as 0); integrating scales it
+        // by e/q (the mean energy per quantum), 0 where q ≤ 0 or NaN.
+        let counting = [0.0, 0.0, 0.0, 4.5, 1234.5, 1e15, 1e15];
+        let integrating = [0.0, 0.0, 0.0, 270.0, 74070.0, 1e15 * (1.2e17 / 2e15), 0.0];
+        for (integrates, want) in [(false, counting), (true, integrating)] {
+            let d = Digitiser {
+                integrating: integrates,
+                quantum_noise: false,
+                offset: 0.0,
+                gain: 1.0,
+                i_max: u16::MAX,
+                table: None,
+            };
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let mut s = [f64::NAN; 7];
+            d.detect_row(&q, &e, &mut rng, &mut s);
+            assert_eq!(s, want, "integrating {integrates}");
+            assert_eq!(
+                rng.next_u64(),
+                ChaCha8Rng::seed_from_u64(3).next_u64(),
+                "no draw"
+            );
         }
     }
 

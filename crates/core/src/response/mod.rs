@@ -161,6 +161,9 @@ pub struct DetectorModel {
     pub i_max: u16,
     /// Raw values or a radiograph.
     pub polarity: Polarity,
+    /// Whether each pixel's count is a Poisson draw of mean `Q` (`true`, a real detector) or
+    /// `Q` itself (the expected image).
+    pub quantum_noise: bool,
 }
 
 impl DetectorModel {

@@ -201,6 +201,7 @@ mod tests {
             offset,
             i_max: u16::MAX,
             polarity,
+            quantum_noise: true,
         }
     }
 

@@ -367,6 +367,7 @@ mod tests {
             offset: 0.0,
             i_max: u16::MAX,
             polarity: Polarity::Raw,
+            quantum_noise: true,
         };
         let soft: Vec<f64> = energies
             .iter()

@@ -23,6 +23,7 @@ fn detector(response: Response, efficiency: Vec<f64>, polarity: Polarity) -> Det
         offset: 0.0,
         i_max: u16::MAX,
         polarity,
+        quantum_noise: true,
     }
 }
 
@@ -421,6 +422,7 @@ fn auto_gain_puts_the_open_field_at_the_fraction() {
         offset,
         i_max,
         polarity: Polarity::Raw,
+        quantum_noise: true,
     };
     let r = render(&beam, &det, &scene, &key());
     let (mean, _) = mean_var(r.pixels.iter().map(|&v| f64::from(v)));
@@ -495,6 +497,7 @@ fn invalid_values_never_panic_and_are_reported() {
                 offset: f64::INFINITY,
                 i_max: 255,
                 polarity,
+                quantum_noise: true,
             };
             let r = render(&beam, &det, &scene, &key());
             assert_eq!(r.pixels.len(), w * h);

@@ -314,6 +314,13 @@ pub struct ResponseOptions {
     /// units. Default 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub electronic_noise_dn: Option<f64>,
+    /// Quantum noise: each pixel's count drawn from the Poisson law of its expected count.
+    /// `false` writes the expected (noise-free) image instead: every pixel's signal is its mean
+    /// (the expected photons counted, or the expected energy absorbed), then scatter, PSF,
+    /// electronic noise and digitisation as usual. For checking the physics against a
+    /// reference, and for noise-free reference images. Default true.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quantum_noise: Option<bool>,
 }
 
 /// A Gaussian point-spread function.
