@@ -142,6 +142,7 @@ fn bench(c: &mut Criterion) {
             offset: 0.0,
             i_max: u16::MAX,
             polarity,
+            quantum_noise: true,
         }
     };
     let radiograph = Polarity::Radiograph { range: 7.0 };
