@@ -122,7 +122,8 @@ fn pixel_values_follow_beer_lambert_along_the_exact_chord() {
 
 /// `quantum_noise = false`: every pixel of the water cylinder's image is Beer–Lambert along
 /// the exact chord, by hand (inverse square, obliquity, the shipped μ), to the rounding of the
-/// stored value; the same scene with quantum noise differs from it by the noise.
+/// stored value; the same scene with quantum noise differs from it by the noise; each folder's
+/// README says which images it holds and lists exposure factors.
 #[test]
 fn without_quantum_noise_every_pixel_is_beer_lambert_to_the_rounding() {
     let tmp = tempfile::tempdir().unwrap();
@@ -163,6 +164,20 @@ fn without_quantum_noise_every_pixel_is_beer_lambert_to_the_rounding() {
         differ > px.len() / 10,
         "{differ} of {} pixels differ",
         px.len()
+    );
+    // The folder's README says which images these are, and lists exposure factors, not the
+    // binary mode's noise levels.
+    let readme = std::fs::read_to_string(out.join("README.md")).unwrap();
+    assert!(
+        readme.contains("expected images, without quantum noise"),
+        "{readme}"
+    );
+    assert!(readme.contains("| run | exposure factor |\n| --- | --- |\n| `n0-r00` | 1 |"));
+    assert!(!readme.contains("noise level"), "{readme}");
+    let readme = std::fs::read_to_string(noisy.join("README.md")).unwrap();
+    assert!(
+        readme.contains("carry the quantum noise of their photons"),
+        "{readme}"
     );
 }
 

@@ -112,10 +112,25 @@ pub fn folder_readme(scenario: &Scenario, runs: &[Run], layout: Option<Layout>) 
         }
     }
     t += "```\n\n";
-    t += "Runs (noise level = mean background noise as a fraction of I_max = 2^bpp − 1):\n\n";
-    t += "| run | noise level |\n| --- | --- |\n";
-    for r in runs {
-        let _ = writeln!(t, "| `{}` | {} |", r.id, r.noise_level);
+    if s.imaging.is_attenuation() {
+        // Attenuation mode has no noise level: the noise follows from the photons.
+        t += "Runs (exposure factor = the multiple of the scenario's exposure, `photons_per_pixel` \
+              or `mas`, the run was imaged at; ";
+        t += if s.imaging.detector.quantum_noise == Some(false) {
+            "the images are expected images, without quantum noise: `quantum_noise = false`):\n\n"
+        } else {
+            "the images carry the quantum noise of their photons):\n\n"
+        };
+        t += "| run | exposure factor |\n| --- | --- |\n";
+        for r in runs {
+            let _ = writeln!(t, "| `{}` | {} |", r.id, r.exposure_factor.unwrap_or(1.0));
+        }
+    } else {
+        t += "Runs (noise level = mean background noise as a fraction of I_max = 2^bpp − 1):\n\n";
+        t += "| run | noise level |\n| --- | --- |\n";
+        for r in runs {
+            let _ = writeln!(t, "| `{}` | {} |", r.id, r.noise_level);
+        }
     }
     t += "\nDetectors:\n\n| detector | source | pixels (W × H) | bits per pixel |\n| --- | --- | --- | --- |\n";
     for d in &s.detectors {
