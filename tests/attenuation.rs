@@ -83,28 +83,43 @@ fn chord_mm(i: u32, j: u32) -> f64 {
     (t1 - t0) * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
-#[test]
-fn pixel_values_follow_beer_lambert_along_the_exact_chord() {
-    let tmp = tempfile::tempdir().unwrap();
-    let scenario = write(tmp.path(), "water.toml", &water_cylinder(""));
-    let out = tmp.path().join("out");
-    let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, _, px) = read_tiff(&out.join("runs/n0-r00/x-det.tiff"));
+/// The open field of [`water_cylinder`] at pixel (i, j): 10⁴·(D/r)³ (inverse square and
+/// obliquity), DN.
+fn open_dn(i: u32, j: u32) -> f64 {
+    let (x, y) = (i as f64 + 0.5 - 32.0, j as f64 + 0.5 - 32.0);
+    let r = (x * x + y * y + 1200.0 * 1200.0).sqrt();
+    1e4 * (1200.0 / r).powi(3)
+}
+
+/// [`water_cylinder`]'s expected value at pixel (i, j) by hand: the open field times
+/// Beer–Lambert along the exact chord with the shipped μ of water at 60 keV, DN.
+fn beer_lambert_dn(i: u32, j: u32) -> f64 {
     let mu_per_mm = rsasim::material::by_name("water")
         .unwrap()
         .linear_attenuation_per_mm(60.0);
-    // The open field at pixel (i, j) is 10⁴·(D/r)³ (inverse square and obliquity).
-    let open = |i: u32, j: u32| {
-        let (x, y) = (i as f64 + 0.5 - 32.0, j as f64 + 0.5 - 32.0);
-        let r = (x * x + y * y + 1200.0 * 1200.0).sqrt();
-        1e4 * (1200.0 / r).powi(3)
-    };
+    open_dn(i, j) * (-mu_per_mm * chord_mm(i, j)).exp()
+}
+
+/// Runs the scenario `text` (written as `name`.toml in `dir`) into `dir/name`; returns that
+/// folder and its one image `x-det.tiff` (width, height, values).
+fn run_water(dir: &Path, name: &str, text: &str) -> (std::path::PathBuf, u32, u32, Vec<u16>) {
+    let scenario = write(dir, &format!("{name}.toml"), text);
+    let out = dir.join(name);
+    let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, h, px) = read_tiff(&out.join("runs/n0-r00/x-det.tiff"));
+    (out, w, h, px)
+}
+
+#[test]
+fn pixel_values_follow_beer_lambert_along_the_exact_chord() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (_, w, _, px) = run_water(tmp.path(), "out", &water_cylinder(""));
     let mut checked = 0;
     for j in [5u32, 32, 60] {
         for i in (0..64).step_by(3) {
             let v = f64::from(px[(j * w + i) as usize]);
-            let expected = open(i, j) * (-mu_per_mm * chord_mm(i, j)).exp();
+            let expected = beer_lambert_dn(i, j);
             // Rounding to whole counts (±0.5) and noise (√(10⁹·T)·10⁻⁵) bound the difference.
             let tolerance = 0.5 + 5.0 * (expected * 1e-5).sqrt() + 1e-4 * expected;
             assert!(
@@ -117,7 +132,7 @@ fn pixel_values_follow_beer_lambert_along_the_exact_chord() {
     }
     assert!(checked > 60);
     // Through the axis the chord is about 80 mm of water: well below the open field.
-    assert!(f64::from(px[(32 * w + 32) as usize]) < 0.3 * open(32, 32));
+    assert!(f64::from(px[(32 * w + 32) as usize]) < 0.3 * open_dn(32, 32));
 }
 
 /// `quantum_noise = false`: every pixel of the water cylinder's image is Beer–Lambert along
@@ -129,22 +144,12 @@ fn without_quantum_noise_every_pixel_is_beer_lambert_to_the_rounding() {
     let tmp = tempfile::tempdir().unwrap();
     let text = water_cylinder("").replace("gain = 1e-5\n", "gain = 1e-5\nquantum_noise = false\n");
     assert!(text.contains("quantum_noise = false"));
-    let scenario = write(tmp.path(), "water.toml", &text);
-    let out = tmp.path().join("out");
-    let o = rsasim(&[&scenario, "--out", out.to_str().unwrap()], &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (w, h, px) = read_tiff(&out.join("runs/n0-r00/x-det.tiff"));
-    let mu_per_mm = rsasim::material::by_name("water")
-        .unwrap()
-        .linear_attenuation_per_mm(60.0);
+    let (out, w, h, px) = run_water(tmp.path(), "out", &text);
     let mut worst = 0.0f64;
     for j in 0..h {
         for i in 0..w {
-            let (x, y) = (i as f64 + 0.5 - 32.0, j as f64 + 0.5 - 32.0);
-            let r = (x * x + y * y + 1200.0 * 1200.0).sqrt();
-            let expected = 1e4 * (1200.0 / r).powi(3) * (-mu_per_mm * chord_mm(i, j)).exp();
             let v = f64::from(px[(j * w + i) as usize]);
-            worst = worst.max((v - expected).abs());
+            worst = worst.max((v - beer_lambert_dn(i, j)).abs());
         }
     }
     // Rounding to whole digital units, and the double arithmetic of the chord (≪ 10⁻⁶).
@@ -154,11 +159,7 @@ fn without_quantum_noise_every_pixel_is_beer_lambert_to_the_rounding() {
     );
     // With quantum noise (√(10⁹) ≈ 3·10⁴ counts, times the gain 10⁻⁵: ≈ 0.3 DN) the
     // stored values differ from these in many pixels.
-    let noisy = tmp.path().join("noisy");
-    let scenario = write(tmp.path(), "noisy.toml", &water_cylinder(""));
-    let o = rsasim(&[&scenario, "--out", noisy.to_str().unwrap()], &[]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (_, _, noisy_px) = read_tiff(&noisy.join("runs/n0-r00/x-det.tiff"));
+    let (noisy, _, _, noisy_px) = run_water(tmp.path(), "noisy", &water_cylinder(""));
     let differ = px.iter().zip(&noisy_px).filter(|(a, b)| a != b).count();
     assert!(
         differ > px.len() / 10,
