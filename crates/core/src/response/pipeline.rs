@@ -161,21 +161,17 @@ fn store_row(
     open: &[f64],
     row: &mut [u16],
 ) -> usize {
-    let mut saturated = 0usize;
     match unsharp.electronic_sd_dn() {
-        None => saturated = digitiser.store_row(signal, open, row),
+        None => digitiser.store_row(signal, open, row),
         Some(sd) => {
+            // The row's draws first, in pixel order, then its values in one pass.
             let mut rng = electronic_key.row_rng(j as u32);
-            for (i, px) in row.iter_mut().enumerate() {
-                let s = signal[i];
-                let noise = sd * standard_normal(&mut rng);
-                let (value, clipped) = digitiser.store_with_read_noise(s, open[i], noise);
-                saturated += usize::from(clipped);
-                *px = value;
-            }
+            let noise: Vec<f64> = (0..row.len())
+                .map(|_| sd * standard_normal(&mut rng))
+                .collect();
+            digitiser.store_row_with_read_noise(signal, open, &noise, row, &mut Vec::new())
         }
     }
-    saturated
 }
 
 #[cfg(test)]
