@@ -11,8 +11,9 @@
 //! the image's indicator (1 inside, 0 outside) renormalises the truncated kernel, so a uniform
 //! image comes out unchanged (within a few ulp). The running sums are compensated (Neumaier
 //! two-sum: a sum and its rounding error), so they do not drift along a line. Rows first, then
-//! columns; columns run as vectors across a strip of columns, and every value is the same
-//! sequence of IEEE operations on any number of threads. The cost does not depend on σ.
+//! columns; each pass runs as vectors across a strip of lines (rows gathered into a strip for
+//! the first), in buffers reused from strip to strip, and every value is the same sequence of
+//! IEEE operations on any number of threads. The cost does not depend on σ.
 
 use rayon::prelude::*;
 
@@ -30,7 +31,7 @@ pub const MAX_SCATTER_SIGMA_MM: f64 = 1000.0;
 /// The largest scatter kernel σ accepted, in pixels of either axis.
 pub const MAX_SCATTER_SIGMA_PX: f64 = 1e4;
 
-/// Columns per strip of the column passes.
+/// Lines (rows or columns) per strip of the passes.
 const STRIP: usize = 64;
 
 /// Scatter added to the expected image before the quantum noise, as a constant
@@ -111,11 +112,7 @@ impl Scatter {
 
     /// `x + SPR · K ∗ x` for the `w × h` image `x` (row-major).
     pub(crate) fn add_to(&self, x: &[f64], w: usize, h: usize) -> Vec<f64> {
-        let blurred = blur(x, w, h, &self.radii);
-        x.iter()
-            .zip(&blurred)
-            .map(|(&x, &s)| x + self.ratio * s)
-            .collect()
+        blur_with(x, w, h, &self.radii, |p, s| x[p] + self.ratio * s)
     }
 }
 
@@ -138,57 +135,129 @@ fn box_radii(sigma_px: f64) -> Vec<usize> {
 }
 
 /// `K ∗ x` normalised (module documentation): rows, then columns.
+#[cfg(test)]
 fn blur(x: &[f64], w: usize, h: usize, radii: &[Vec<usize>; 2]) -> Vec<f64> {
-    if w == 0 || h == 0 {
-        return x.to_vec();
-    }
-    let along_rows = transpose(&blur_columns(&transpose(x, w, h), h, w, &radii[0]), h, w);
-    blur_columns(&along_rows, w, h, &radii[1])
+    blur_with(x, w, h, radii, |_, s| s)
 }
 
-/// The box cascade along every column of the `w × h` image `x`, renormalised at the borders.
-fn blur_columns(x: &[f64], w: usize, h: usize, radii: &[usize]) -> Vec<f64> {
+/// `finish(p, (K ∗ x)_p)` for every pixel `p` (row-major), `K ∗ x` normalised (module
+/// documentation): along the rows, then along the columns. Each pass runs the cascade on strips
+/// of [`STRIP`] lines, a line per lane (rows gathered into a strip for the first pass, columns
+/// for the second), in buffers reused from strip to strip; every value is the same sequence of
+/// IEEE operations whatever the strips and the threads.
+fn blur_with(
+    x: &[f64],
+    w: usize,
+    h: usize,
+    radii: &[Vec<usize>; 2],
+    finish: impl Fn(usize, f64) -> f64 + Sync,
+) -> Vec<f64> {
+    if w == 0 || h == 0 {
+        return x.iter().enumerate().map(|(p, &v)| finish(p, v)).collect();
+    }
+    let along_rows = blur_rows(x, w, h, &radii[0]);
+    blur_columns(&along_rows, w, h, &radii[1], finish)
+}
+
+/// The cascade of the indicator of a line of `n` values padded by `pad` on both sides
+/// (integers below 2⁵³, so exact): what a border pixel's sum is divided by.
+fn denominators(n: usize, pad: usize, radii: &[usize]) -> Vec<f64> {
+    let len = n + 2 * pad;
+    let mut ind = vec![0.0; len];
+    ind[pad..pad + n].fill(1.0);
+    let mut scratch = Vec::new();
+    cascade(&mut ind, &mut scratch, 1, radii);
+    ind
+}
+
+/// The box cascade along every row of the `w × h` image `x`, renormalised at the borders:
+/// [`STRIP`] rows at a time, each row a lane of a `(w + 2·pad) × rows` strip.
+fn blur_rows(x: &[f64], w: usize, h: usize, radii: &[usize]) -> Vec<f64> {
+    let pad: usize = radii.iter().sum();
+    let len = w + 2 * pad;
+    let den = denominators(w, pad, radii);
+    let mut out = vec![0.0; w * h];
+    out.par_chunks_mut(w * STRIP)
+        .zip(x.par_chunks(w * STRIP))
+        .for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(a, b), (out, x)| {
+                let sr = x.len() / w;
+                a.clear();
+                a.resize(len * sr, 0.0);
+                for (k, row) in x.chunks_exact(w).enumerate() {
+                    for (i, &v) in row.iter().enumerate() {
+                        a[(pad + i) * sr + k] = v;
+                    }
+                }
+                cascade(a, b, sr, radii);
+                for (k, row) in out.chunks_exact_mut(w).enumerate() {
+                    for (i, o) in row.iter_mut().enumerate() {
+                        *o = a[(pad + i) * sr + k] / den[pad + i];
+                    }
+                }
+            },
+        );
+    out
+}
+
+/// The output image, written by several strips at once, each into its own columns.
+struct Columns(*mut f64);
+
+// SAFETY: the strips of `blur_columns` write disjoint columns of the image behind the pointer,
+// which outlives them.
+unsafe impl Sync for Columns {}
+
+/// `finish(p, ·)` of the box cascade along every column of the `w × h` image `x`, renormalised
+/// at the borders: [`STRIP`] columns at a time, each a lane of a `(h + 2·pad) × columns` strip.
+fn blur_columns(
+    x: &[f64],
+    w: usize,
+    h: usize,
+    radii: &[usize],
+    finish: impl Fn(usize, f64) -> f64 + Sync,
+) -> Vec<f64> {
     let pad: usize = radii.iter().sum();
     let len = h + 2 * pad;
-    // The cascade of the indicator: integers below 2⁵³, so exact.
-    let mut ind = vec![0.0; len];
-    ind[pad..pad + h].fill(1.0);
-    let den = cascade(ind, 1, radii);
-    let strips: Vec<Vec<f64>> = (0..w)
+    let den = denominators(h, pad, radii);
+    let mut out = vec![0.0; w * h];
+    let target = Columns(out.as_mut_ptr());
+    (0..w)
         .step_by(STRIP)
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|c0| {
-            let sw = STRIP.min(w - c0);
-            let mut a = vec![0.0; len * sw];
-            for j in 0..h {
-                a[(pad + j) * sw..(pad + j + 1) * sw]
-                    .copy_from_slice(&x[j * w + c0..j * w + c0 + sw]);
-            }
-            cascade(a, sw, radii)
-        })
-        .collect();
-    let mut out = vec![0.0; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
-        let d = den[pad + j];
-        for (s, c0) in strips.iter().zip((0..w).step_by(STRIP)) {
-            let sw = STRIP.min(w - c0);
-            for (o, &v) in row[c0..c0 + sw]
-                .iter_mut()
-                .zip(&s[(pad + j) * sw..(pad + j + 1) * sw])
-            {
-                *o = v / d;
-            }
-        }
-    });
+        .for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(a, b), c0| {
+                let sw = STRIP.min(w - c0);
+                a.clear();
+                a.resize(len * sw, 0.0);
+                for j in 0..h {
+                    a[(pad + j) * sw..(pad + j + 1) * sw]
+                        .copy_from_slice(&x[j * w + c0..j * w + c0 + sw]);
+                }
+                cascade(a, b, sw, radii);
+                let target = &target;
+                for j in 0..h {
+                    let d = den[pad + j];
+                    for (k, &v) in a[(pad + j) * sw..(pad + j + 1) * sw].iter().enumerate() {
+                        let p = j * w + c0 + k;
+                        // SAFETY: `p < w·h`, and column c0 + k belongs to this strip alone.
+                        unsafe { *target.0.add(p) = finish(p, v / d) };
+                    }
+                }
+            },
+        );
     out
 }
 
 /// The passes of box sums of radii `radii` down the rows of `a` (`len × sw`, row-major, zero
-/// outside), each a compensated running sum per column.
-fn cascade(mut a: Vec<f64>, sw: usize, radii: &[usize]) -> Vec<f64> {
+/// outside), each a compensated running sum per column; the result is left in `a`, `b` is
+/// scratch.
+fn cascade(a: &mut Vec<f64>, b: &mut Vec<f64>, sw: usize, radii: &[usize]) {
     let len = a.len() / sw;
-    let mut b = vec![0.0; a.len()];
+    b.clear();
+    b.resize(a.len(), 0.0);
     let (mut hi, mut lo) = (vec![0.0; sw], vec![0.0; sw]);
     for &r in radii {
         hi.fill(0.0);
@@ -207,9 +276,8 @@ fn cascade(mut a: Vec<f64>, sw: usize, radii: &[usize]) -> Vec<f64> {
                 *o = h + l;
             }
         }
-        std::mem::swap(&mut a, &mut b);
+        std::mem::swap(a, b);
     }
-    a
 }
 
 /// `(hi, lo) += sign · x` per lane: Neumaier's two-sum, the rounding error kept in `lo`.
@@ -222,26 +290,6 @@ fn two_sum(hi: &mut [f64], lo: &mut [f64], x: &[f64], sign: f64) {
         *l += (*h - (s - bb)) + (v - bb);
         *h = s;
     }
-}
-
-/// The `w × h` image `x` (row-major) transposed to `h × w`.
-fn transpose(x: &[f64], w: usize, h: usize) -> Vec<f64> {
-    const B: usize = 32;
-    let mut out = vec![0.0; w * h];
-    out.par_chunks_mut(h * B)
-        .enumerate()
-        .for_each(|(bi, chunk)| {
-            let i0 = bi * B;
-            let rows = chunk.len() / h;
-            for j0 in (0..h).step_by(B) {
-                for j in j0..(j0 + B).min(h) {
-                    for di in 0..rows {
-                        chunk[di * h + j] = x[j * w + i0 + di];
-                    }
-                }
-            }
-        });
-    out
 }
 
 #[cfg(test)]
