@@ -159,10 +159,10 @@ impl Digitiser {
     }
 
     /// [`Digitiser::store_row`] with `noise_dn[i]` DN of electronic noise on pixel `i`: its raw
-    /// value becomes `offset + gain · S + noise_dn`, a radiograph's signal `S + noise_dn / gain`.
-    /// Returns how many raw values were clipped at the top. `scratch` holds a radiograph's noisy
-    /// signals (reused from row to row). One pass without branches per pixel, so it vectorizes
-    /// (with AVX2 where the CPU has it; the same IEEE operations, so the same values).
+    /// value becomes `offset + gain · S + noise_dn`, a radiograph's signal `S + noise_dn / gain`
+    /// (left in `noise_dn`, which the row's values no longer need). Returns how many raw values
+    /// were clipped at the top. One pass without branches per pixel, so it vectorizes (with
+    /// AVX2 where the CPU has it; the same IEEE operations, so the same values).
     ///
     /// # Panics
     /// When the four slices differ in length.
@@ -170,9 +170,8 @@ impl Digitiser {
         &self,
         signal: &[f64],
         open: &[f64],
-        noise_dn: &[f64],
+        noise_dn: &mut [f64],
         out: &mut [u16],
-        scratch: &mut Vec<f64>,
     ) -> usize {
         assert!(
             signal.len() == open.len()
@@ -180,21 +179,26 @@ impl Digitiser {
                 && signal.len() == out.len(),
             "one S, S_open, noise and value per pixel"
         );
-        scratch.resize(signal.len(), 0.0);
+        let saturated = self.read_noise_row_fastest(signal, noise_dn, out);
+        if let Some(t) = &self.table {
+            t.values_row(noise_dn, open, out);
+        }
+        saturated
+    }
+
+    /// [`Digitiser::read_noise_row`], compiled for AVX2 where the CPU has it.
+    fn read_noise_row_fastest(
+        &self,
+        signal: &[f64],
+        noise_dn: &mut [f64],
+        out: &mut [u16],
+    ) -> usize {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            let saturated = unsafe { self.read_noise_row_avx2(signal, noise_dn, out, scratch) };
-            if let Some(t) = &self.table {
-                t.values_row(scratch, open, out);
-            }
-            return saturated;
+            return unsafe { self.read_noise_row_avx2(signal, noise_dn, out) };
         }
-        let saturated = self.read_noise_row(signal, noise_dn, out, scratch);
-        if let Some(t) = &self.table {
-            t.values_row(scratch, open, out);
-        }
-        saturated
+        self.read_noise_row(signal, noise_dn, out)
     }
 
     /// [`Digitiser::read_noise_row`] compiled for AVX2.
@@ -206,35 +210,24 @@ impl Digitiser {
     unsafe fn read_noise_row_avx2(
         &self,
         signal: &[f64],
-        noise_dn: &[f64],
+        noise_dn: &mut [f64],
         out: &mut [u16],
-        noisy: &mut [f64],
     ) -> usize {
-        self.read_noise_row(signal, noise_dn, out, noisy)
+        self.read_noise_row(signal, noise_dn, out)
     }
 
     /// The raw values `offset + gain · S + noise` of a row: how many are clipped at the top; per
-    /// pixel the stored raw value ([`quantise`]) into `out` and the noisy signal
-    /// `S + noise / gain` into `noisy` (a radiograph's caller then replaces `out` by its values).
+    /// pixel the stored raw value ([`quantise`]) into `out`, and the noisy signal
+    /// `S + noise / gain` in place of the noise (a radiograph's caller then replaces `out` by
+    /// its values).
     #[inline(always)]
-    fn read_noise_row(
-        &self,
-        signal: &[f64],
-        noise_dn: &[f64],
-        out: &mut [u16],
-        noisy: &mut [f64],
-    ) -> usize {
+    fn read_noise_row(&self, signal: &[f64], noise_dn: &mut [f64], out: &mut [u16]) -> usize {
         let mut saturated = 0usize;
-        for (((o, y), &s), &n) in out
-            .iter_mut()
-            .zip(noisy.iter_mut())
-            .zip(signal)
-            .zip(noise_dn)
-        {
-            let raw = self.offset + self.gain * s + n;
+        for ((o, n), &s) in out.iter_mut().zip(noise_dn.iter_mut()).zip(signal) {
+            let raw = self.offset + self.gain * s + *n;
             saturated += usize::from(is_saturated(raw, self.i_max));
             *o = quantise(raw, self.i_max);
-            *y = s + n / self.gain;
+            *n = s + *n / self.gain;
         }
         saturated
     }
@@ -653,17 +646,16 @@ mod tests {
                     .filter(|&&v| (v + 0.5).floor() > f64::from(i_max))
                     .count();
                 let mut got = vec![0u16; n];
-                let mut scratch = Vec::new();
-                let c = d.store_row_with_read_noise(&signal, &open, &noise, &mut got, &mut scratch);
+                let c = d.store_row_with_read_noise(&signal, &open, &mut noise.clone(), &mut got);
                 assert_eq!(
                     (c, &got),
                     (clipped, &want),
                     "i_max {i_max}, range {range:?}"
                 );
                 let mut portable = vec![0u16; n];
-                let mut noisy = vec![0.0; n];
+                let mut noisy = noise.clone();
                 assert_eq!(
-                    d.read_noise_row(&signal, &noise, &mut portable, &mut noisy),
+                    d.read_noise_row(&signal, &mut noisy, &mut portable),
                     clipped
                 );
                 if let Some(t) = &d.table {

@@ -166,10 +166,10 @@ fn store_row(
         Some(sd) => {
             // The row's draws first, in pixel order, then its values in one pass.
             let mut rng = electronic_key.row_rng(j as u32);
-            let noise: Vec<f64> = (0..row.len())
+            let mut noise: Vec<f64> = (0..row.len())
                 .map(|_| sd * standard_normal(&mut rng))
                 .collect();
-            digitiser.store_row_with_read_noise(signal, open, &noise, row, &mut Vec::new())
+            digitiser.store_row_with_read_noise(signal, open, &mut noise, row)
         }
     }
 }

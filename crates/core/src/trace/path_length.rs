@@ -32,7 +32,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use super::raster::{self, centre_range, scan_triangle};
-use super::{MeshBvh, Object, pixel_bounds, shapes};
+use super::{Chords, MeshBvh, Object, pixel_bounds, shapes};
 use crate::geometry::{DetectorFrame, Pose};
 
 /// Per-pixel path length of one object over a rectangle of pixels.
@@ -99,14 +99,7 @@ pub fn path_lengths_traced(
             .for_each_init(Vec::new, |targets, (row, j)| {
                 targets.clear();
                 targets.extend((i0..i1).map(|i| frame.pixel_centre_world(i, j)));
-                match &chords {
-                    Some(c) => c.lengths_mm(targets, row),
-                    None => {
-                        for (l, &target) in row.iter_mut().zip(targets.iter()) {
-                            *l = traced_length_mm(object, source_mm, target);
-                        }
-                    }
-                }
+                lengths_to_targets_mm(object, chords.as_ref(), source_mm, targets, row);
             });
     }
     Some(PathLengths {
@@ -114,6 +107,26 @@ pub fn path_lengths_traced(
         rows: j0..j1,
         length_mm,
     })
+}
+
+/// The lengths (mm) of the segments `source → target` inside `object` for each of `targets`, into
+/// `out`: by an analytic solid's row kernels (`chords`, its `chords_from(source)`: bit for bit
+/// its per-target chords), else by [`traced_length_mm`] per target.
+pub(super) fn lengths_to_targets_mm(
+    object: &Object,
+    chords: Option<&Chords>,
+    source: DVec3,
+    targets: &[DVec3],
+    out: &mut [f64],
+) {
+    match chords {
+        Some(c) => c.lengths_mm(targets, out),
+        None => {
+            for (l, &target) in out.iter_mut().zip(targets) {
+                *l = traced_length_mm(object, source, target);
+            }
+        }
+    }
 }
 
 /// The length (mm) of the segment `source → target` inside `object`, by ray casting (meshes) or

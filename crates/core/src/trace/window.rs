@@ -18,7 +18,7 @@ use std::ops::Range;
 
 use glam::{DVec2, DVec3};
 
-use super::path_length::{MeshDepth, traced_length_mm};
+use super::path_length::{MeshDepth, lengths_to_targets_mm};
 use super::raster::{self, centre_range};
 use super::{MeshBvh, Object, PathLengths, pixel_bounds};
 use crate::geometry::DetectorFrame;
@@ -148,14 +148,14 @@ impl<'a> Projected<'a> {
                     }
                 }
                 let mut found = vec![0.0; targets.len()];
-                match self.object.chords_from(self.source_mm) {
-                    Some(chords) => chords.lengths_mm(&targets, &mut found),
-                    None => {
-                        for (l, &t) in found.iter_mut().zip(&targets) {
-                            *l = traced_length_mm(self.object, self.source_mm, t);
-                        }
-                    }
-                }
+                let chords = self.object.chords_from(self.source_mm);
+                lengths_to_targets_mm(
+                    self.object,
+                    chords.as_ref(),
+                    self.source_mm,
+                    &targets,
+                    &mut found,
+                );
                 let mut lengths = vec![0.0; width * height];
                 for (&k, &l) in at.iter().zip(&found) {
                     lengths[k] = l;
