@@ -26,6 +26,10 @@ load average at the start and at the end.
     bench/printed.py attenuation-speed [--venv DIR]   # bench/attenuation.sh (rsasim against
                                             #   gVirtualXray and Embree) -> attenuation-speed.md,
                                             #   attenuation-transmission.md, attenuation-pathlength.md
+    bench/printed.py binary-peers [--venv DIR]   # bench/run.sh --no-protocol (the binary
+                                            #   projector and noise against Embree and gVirtualXray,
+                                            #   the per-stage image bench) -> binary-vs-peers.md,
+                                            #   binary-peer-details.md, binary-per-stage.md
     bench/printed.py first-run-cost         # bench/first_run.sh: a fresh clone's first build,
                                             #   run and test -> first-run-cost.md
     bench/printed.py protocols [--rounds N] [--baseline BIN]   # the binary, realistic and
@@ -383,6 +387,73 @@ def cmd_attenuation_speed(args):
               note=f"from `bench/attenuation.sh` (its summary.md in bench/results/attenuation/): {what}")
 
 
+def cmd_binary_peers(args):
+    """bench/run.sh without its protocol step (protocol-full.md times that): the criterion
+    medians of the binary projector and noise, the per-stage image bench and the peers (Embree,
+    gVirtualXray) on the same scenes, written as three tables."""
+    binary = stamp.release_binary()
+    start = stamp.load()
+    began = time.time()
+    cmd = ["bash", "bench/run.sh", "--no-protocol"] + (["--venv", args.venv] if args.venv else [])
+    run(cmd)
+    results = ROOT / "bench/results"
+
+    def fresh(name):
+        # bench/run.sh reuses an older peer JSON when a peer fails; a table must not.
+        path = results / name
+        if not path.is_file() or path.stat().st_mtime < began:
+            sys.exit(f"{path} was not written by this run of bench/run.sh (see bench/results/*.log)")
+        return json.loads(path.read_text())
+
+    summary, embree, gvxr = fresh("summary.json"), fresh("embree.json"), fresh("gvxr.json")
+    fmt = lambda v: "—" if v is None else f"{v:.2f} ms" if v < 10 else f"{v:.1f} ms"  # noqa: E731
+    rows = ["| what | ours | peer | peer time | ratio ours/peer | target | met |", "|---|---:|---|---:|---:|---|---|"]
+    for what, ours, peer, peer_ms, ratio, target, met in summary["rows"]:
+        if target is None:
+            tgt, r = "", "—" if ratio is None else f"{ratio:.3f}"
+        else:
+            tgt = f"≤ {target:g} (≥ {1 / target:g}× faster)" if target < 1 else f"≤ {target:g}"
+            r = "n/a" if ratio is None else f"**{ratio:.3f}**"
+            met = {"yes": "yes", "no": "**no**"}.get(met, met)
+        rows.append(f"| {what} | {fmt(ours)} | {peer or '—'} | {fmt(peer_ms) if peer else '—'} | {r} | {tgt} | {met} |")
+    command = "bench/printed.py binary-peers" + (f" --venv {args.venv}" if args.venv else "")
+    write(args, "binary-vs-peers.md", command, "\n".join(rows), binary, load_start=start,
+          note="ours: criterion medians (`cargo bench --bench projector`); peers: medians of "
+               f"{os.environ.get('BENCH_REPEATS', '7')} after a warm-up (`bench/peers.py`); same machine, same run")
+    names = {"femur": "femoral component", "sphere": "sphere"}
+    rows = ["| peer, scene | set-up | image | agreement with rsasim |", "|---|---|---|---|"]
+    for scene, r in embree["scenes"].items():
+        rows.append(f"| Embree, {names.get(scene, scene)} | scene build (BVH) {r['build_ms']:.1f} ms, 1 core | "
+                    f"rtcOccluded1 {r['occluded_ms']:.1f} ms, rtcIntersect1 {r['intersect_ms']:.1f} ms | "
+                    f"hit mask against `render_binary`: {r['disagree_px_vs_binary']:,} px differ, against "
+                    f"`render_binary_traced`: {r['disagree_px_vs_traced']:,} ({r['hit_px']:,} px hit) |")
+    for scene, r in gvxr["scenes"].items():
+        rows.append(f"| gVXR, {names.get(scene, scene)} | scene {r['setup_ms']:.0f} ms (OpenGL context "
+                    f"{gvxr['context_ms']:.0f} ms, once) | {r['xray_clean_ms']:.1f} ms, {r['xray_noise_ms']:.1f} ms "
+                    f"with Poisson noise | shadow {r['shadow_px']:,} px against our {r['ours_px']:,}: "
+                    f"{r['disagree_px']:,} px differ |")
+    write(args, "binary-peer-details.md", command, "\n".join(rows), binary, load_start=start,
+          note=f"{embree['peer']} (`bench/peers.py embree`, pinned to one CPU); {gvxr['peer']} "
+               f"(`bench/peers.py gvxr`) on {gvxr['renderer']}, threads {gvxr['LP_NUM_THREADS']}")
+    log_text = (results / "images.log").read_text()
+    bvh = re.search(r"^femur BVH build \((\d+) triangles\): ([\d.]+) ms$", log_text, re.M)
+    stage = re.compile(r"^(calibration|model)\s+image 1440² \((\d+) covered px\): trace ([\d.]+) ms, noise ([\d.]+) ms, "
+                       r"TIFF ([\d.]+) ms, EXR ([\d.]+) ms, total ([\d.]+) ms$", re.M)
+    found = stage.findall(log_text)
+    if not bvh or len(found) != 2:
+        sys.exit(f"bench/results/images.log lacks the per-stage lines:\n{log_text[-2000:]}")
+    what = {"calibration": "calibration (256 beads, {} px covered)",
+            "model": "model (femoral component + 6 beads, {} px covered)"}
+    rows = ["| image | trace | noise | TIFF | EXR | total |", "|---|---:|---:|---:|---:|---:|"]
+    for name, covered, *ms in found:
+        rows.append(f"| {what[name].format(f'{int(covered):,}')} | " + " | ".join(ms) + " |")
+    rows += ["", f"The femoral component's BVH ({int(bvh.group(1)):,} triangles, for `render_binary_traced`) "
+                 f"took {bvh.group(2)} ms to build, outside these timings."]
+    write(args, "binary-per-stage.md", command, "\n".join(rows), binary, load_start=start,
+          note="`cargo bench --bench images` (its bench/results/images.log): one image, one thread for the trace, "
+               "median of 7, ms")
+
+
 # Issue 32's targets for the realistic protocols against the binary one (10-run copies).
 PROTOCOL_TARGET = {"biplanar_realistic": "≤ 2.5", "biplanar_realistic_blurred": "≤ 8"}
 PROTOCOLS = ("biplanar", "biplanar_realistic", "biplanar_realistic_blurred")
@@ -694,6 +765,7 @@ def main():
     p.add_argument("n", nargs="?", default="20000")
     p.add_argument("--only", default=None)
     sub.add_parser("attenuation-speed").add_argument("--venv", default=None)
+    sub.add_parser("binary-peers").add_argument("--venv", default=None)
     p = sub.add_parser("protocols")
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--baseline", default=None, help="an older rsasim binary, timed alternately")
@@ -715,6 +787,7 @@ def main():
         "protocols": cmd_protocols, "adaptive-crop": cmd_adaptive_crop, "protocol": cmd_protocol,
         "shards": cmd_shards, "reconstruct-study": cmd_reconstruct_study,
         "missed-beads": cmd_missed_beads, "blurred-ladder": cmd_blurred_ladder,
+        "binary-peers": cmd_binary_peers,
     }[args.which](args)
 
 

@@ -1,28 +1,40 @@
 #!/usr/bin/env bash
 # rsasim's benchmark suite, peers included, in one command (see docs/src/development/benchmarks.md):
 #
-#   bench/run.sh [--no-criterion] [--no-protocol] [--no-peers]
+#   bench/run.sh [--no-criterion] [--no-protocol] [--no-peers] [--venv DIR]
 #
 # 1. builds the release binary;
 # 2. runs the criterion benches (`cargo bench --bench projector`) and the per-stage image bench
 #    (`cargo bench --bench images`);
 # 3. runs the full scenarios/biplanar.toml protocol under /usr/bin/time (bench/protocol.sh);
 # 4. installs the peers into a throwaway virtual environment (PyPI: numpy, embreex, gvxr; Debian:
-#    the Mesa EGL and libxcb packages gvxr needs, when run as root), exports the scenes
-#    (examples/bench_scene.rs) and measures the peers (bench/peers.py);
+#    the Mesa EGL and libxcb packages gvxr needs, when run as root), or uses --venv DIR where
+#    they are installed already, exports the scenes (examples/bench_scene.rs) and measures the
+#    peers (bench/peers.py);
 # 5. prints the table of medians and ratios ours / peer.
 #
-# Results go to bench/results/ (ignored by git): summary.md, the peers' JSON, the logs.
+# Results go to bench/results/ (ignored by git): summary.md and summary.json, the peers' JSON,
+# the logs. `bench/printed.py binary-peers` runs this and writes the book's tables from them.
 # Environment: BENCH_REPEATS (peers' repeats, default 7), BENCH_PYTHON (default python3).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-criterion=1 protocol=1 peers=1
-for arg in "$@"; do
+criterion=1 protocol=1 peers=1 venv=""
+while (($#)); do
+    arg=$1
+    shift
     case $arg in
     --no-criterion) criterion=0 ;;
     --no-protocol) protocol=0 ;;
     --no-peers) peers=0 ;;
+    --venv)
+        venv=${1:?--venv needs a folder}
+        shift
+        [[ -x $venv/bin/python ]] || {
+            echo "bench/run.sh: --venv $venv has no bin/python" >&2
+            exit 2
+        }
+        ;;
     -h | --help)
         sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'
         exit 0
@@ -70,7 +82,9 @@ scenes=$work/scenes
 if ((peers)); then
     say "4. peers: scene export, throwaway venv, Embree (embreex) and gVirtualXray (gvxr)"
     "$target_dir/release/examples/bench_scene" "$scenes"
-    peers_env "$work" "$python" || peers=0
+    if [[ -z $venv ]]; then
+        peers_env "$work" "$python" || peers=0
+    fi
 fi
 if ((peers)); then
     "$venv/bin/python" bench/peers.py embree "$scenes" --repeats "$repeats" 2>&1 | tee "$results/embree.log" ||
@@ -92,6 +106,7 @@ protocol_arg=()
 [[ -f $results/protocol.json ]] && protocol_arg=(--protocol "$results/protocol.json")
 "$python" bench/peers.py summary "$scenes" --criterion "$target_dir/criterion" \
     "${protocol_arg[@]}" --markdown "$results/summary.md" >/dev/null
+cp "$scenes/summary.json" "$results/"
 cat "$results/machine.txt" "$results/summary.md"
 echo
 echo "results: $results/ (summary.md, *.json, *.log)"
