@@ -5,7 +5,8 @@ item 5).
 Takes one run of `scenarios/biplanar_realistic.toml` (the same seed and draws as
 `biplanar_realistic_blurred.toml`, so run ids compare) and simulates it alone (`--shard K/N`)
 with the blurred scenario's unsharpness options one at a time, with all of them (the blurred
-scenario itself), and with none (the sharp scenario). Every variant runs at an exposure so high
+scenario itself), with all of them and the box's plates not imaged (bench/bias.py's "bare"),
+and with none (the sharp scenario). Every variant runs at an exposure so high
 that quantum noise is negligible (`--exposure`, default ×50 of 10 mAs); the sharp and the
 blurred variant also run at the run's own exposure level, to show whether noise matters. Each is
 reconstructed with `rsasim reconstruct OUT --model-method silhouette`, and the femur's pose is
@@ -29,7 +30,7 @@ import tempfile
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import stamp  # noqa: E402
-from bias import LEVELS, RUNS_PER_LEVEL, VARIANTS, run, scenario_text  # noqa: E402
+from bias import BARE, LABELS, LEVELS, RUNS_PER_LEVEL, VARIANTS, run, scenario_text  # noqa: E402
 
 
 def rotation_vector_deg(r):
@@ -82,14 +83,14 @@ def main():
             scen = pathlib.Path(tmp) / f"{name}-{factor:g}.toml"
             levels = list(LEVELS)
             levels[level] = factor
-            scen.write_text(scenario_text(RUNS_PER_LEVEL, imaging, detector, levels))
+            scen.write_text(scenario_text(RUNS_PER_LEVEL, imaging, detector, levels, bare=name in BARE))
             out = pathlib.Path(tmp) / f"{name}-{factor:g}"
             run([binary, str(scen), "--out", str(out), "--shard", shard,
                  "--allow-dir", str(stamp.ROOT / "scenarios/models")])
             folder = next(out.iterdir())
             run([binary, "reconstruct", str(folder), "--model-method", "silhouette"])
             rot, pos, contour = femur_error(folder / "runs" / args.run)
-            label = "all (the blurred scenario)" if name == "all" else name
+            label = "all (the blurred scenario)" if name == "all" else LABELS.get(name, name)
             print(f"| {label} | ×{factor:g} | {rot[0]:+.3f}, {rot[1]:+.3f}, {rot[2]:+.3f} | "
                   f"{math.sqrt(sum(a * a for a in rot)):.3f} | {pos:.3f} | {contour:.3f} |", flush=True)
 
