@@ -394,8 +394,7 @@ def cmd_binary_peers(args):
     binary = stamp.release_binary()
     start = stamp.load()
     began = time.time()
-    cmd = ["bash", "bench/run.sh", "--no-protocol"] + (["--venv", args.venv] if args.venv else [])
-    run(cmd)
+    run(["bash", "bench/run.sh", "--no-protocol"] + (["--venv", args.venv] if args.venv else []))
     results = ROOT / "bench/results"
 
     def fresh(name):
@@ -405,7 +404,21 @@ def cmd_binary_peers(args):
             sys.exit(f"{path} was not written by this run of bench/run.sh (see bench/results/*.log)")
         return json.loads(path.read_text())
 
-    summary, embree, gvxr = fresh("summary.json"), fresh("embree.json"), fresh("gvxr.json")
+    embree, gvxr = fresh("embree.json"), fresh("gvxr.json")
+    command = "bench/printed.py binary-peers" + (f" --venv {args.venv}" if args.venv else "")
+    write(args, "binary-vs-peers.md", command, binary_vs_peers(fresh("summary.json")), binary, load_start=start,
+          note="ours: criterion medians (`cargo bench --bench projector`); peers: medians of "
+               f"{os.environ.get('BENCH_REPEATS', '7')} after a warm-up (`bench/peers.py`); same machine, same run")
+    write(args, "binary-peer-details.md", command, binary_peer_details(embree, gvxr), binary, load_start=start,
+          note=f"{embree['peer']} (`bench/peers.py embree`, pinned to one CPU); {gvxr['peer']} "
+               f"(`bench/peers.py gvxr`) on {gvxr['renderer']}, threads {gvxr['LP_NUM_THREADS']}")
+    write(args, "binary-per-stage.md", command, binary_per_stage((results / "images.log").read_text()), binary,
+          load_start=start, note="`cargo bench --bench images` (its bench/results/images.log): one image, one thread "
+                                 "for the trace, median of 7, ms")
+
+
+def binary_vs_peers(summary):
+    """The rows of `bench/peers.py summary` (its summary.json) as the ours-against-peers table."""
     fmt = lambda v: "—" if v is None else f"{v:.2f} ms" if v < 10 else f"{v:.1f} ms"  # noqa: E731
     rows = ["| what | ours | peer | peer time | ratio ours/peer | target | met |", "|---|---:|---|---:|---:|---|---|"]
     for what, ours, peer, peer_ms, ratio, target, met in summary["rows"]:
@@ -416,10 +429,11 @@ def cmd_binary_peers(args):
             r = "n/a" if ratio is None else f"**{ratio:.3f}**"
             met = {"yes": "yes", "no": "**no**"}.get(met, met)
         rows.append(f"| {what} | {fmt(ours)} | {peer or '—'} | {fmt(peer_ms) if peer else '—'} | {r} | {tgt} | {met} |")
-    command = "bench/printed.py binary-peers" + (f" --venv {args.venv}" if args.venv else "")
-    write(args, "binary-vs-peers.md", command, "\n".join(rows), binary, load_start=start,
-          note="ours: criterion medians (`cargo bench --bench projector`); peers: medians of "
-               f"{os.environ.get('BENCH_REPEATS', '7')} after a warm-up (`bench/peers.py`); same machine, same run")
+    return "\n".join(rows)
+
+
+def binary_peer_details(embree, gvxr):
+    """The peers' set-up, image times and agreement with rsasim, from their JSON files."""
     names = {"femur": "femoral component", "sphere": "sphere"}
     rows = ["| peer, scene | set-up | image | agreement with rsasim |", "|---|---|---|---|"]
     for scene, r in embree["scenes"].items():
@@ -432,10 +446,11 @@ def cmd_binary_peers(args):
                     f"{gvxr['context_ms']:.0f} ms, once) | {r['xray_clean_ms']:.1f} ms, {r['xray_noise_ms']:.1f} ms "
                     f"with Poisson noise | shadow {r['shadow_px']:,} px against our {r['ours_px']:,}: "
                     f"{r['disagree_px']:,} px differ |")
-    write(args, "binary-peer-details.md", command, "\n".join(rows), binary, load_start=start,
-          note=f"{embree['peer']} (`bench/peers.py embree`, pinned to one CPU); {gvxr['peer']} "
-               f"(`bench/peers.py gvxr`) on {gvxr['renderer']}, threads {gvxr['LP_NUM_THREADS']}")
-    log_text = (results / "images.log").read_text()
+    return "\n".join(rows)
+
+
+def binary_per_stage(log_text):
+    """The per-stage table from what `cargo bench --bench images` printed (benches/images.rs)."""
     bvh = re.search(r"^femur BVH build \((\d+) triangles\): ([\d.]+) ms$", log_text, re.M)
     stage = re.compile(r"^(calibration|model)\s+image 1440² \((\d+) covered px\): trace ([\d.]+) ms, noise ([\d.]+) ms, "
                        r"TIFF ([\d.]+) ms, EXR ([\d.]+) ms, total ([\d.]+) ms$", re.M)
@@ -449,9 +464,7 @@ def cmd_binary_peers(args):
         rows.append(f"| {what[name].format(f'{int(covered):,}')} | " + " | ".join(ms) + " |")
     rows += ["", f"The femoral component's BVH ({int(bvh.group(1)):,} triangles, for `render_binary_traced`) "
                  f"took {bvh.group(2)} ms to build, outside these timings."]
-    write(args, "binary-per-stage.md", command, "\n".join(rows), binary, load_start=start,
-          note="`cargo bench --bench images` (its bench/results/images.log): one image, one thread for the trace, "
-               "median of 7, ms")
+    return "\n".join(rows)
 
 
 # Issue 32's targets for the realistic protocols against the binary one (10-run copies).
